@@ -1,0 +1,229 @@
+"""Wire contract v1: the pydantic models shared by the client and the server.
+
+Defined once here; `server/` imports them, so the two sides cannot drift.
+A decision value is a choice name (categorical) or a list of floats (continuous).
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+MAX_LABEL = 128
+MAX_CHOICES = 64
+MAX_DIM = 32
+MAX_NODES = 64
+MAX_EDGES = 256
+MAX_POINTS_PER_POST = 1000
+
+Label = Annotated[str, Field(min_length=1, max_length=MAX_LABEL)]
+Value = str | list[float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class CategoricalDomain(_Strict):
+    """A finite set of named choices; `embedding` optionally maps each choice to a vector
+    (a grasp direction to its unit approach vector) so that surrogates see geometry, not codes."""
+
+    kind: Literal["categorical"] = "categorical"
+    choices: list[Label] = Field(min_length=1, max_length=MAX_CHOICES)
+    embedding: dict[str, list[float]] | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> CategoricalDomain:
+        if len(set(self.choices)) != len(self.choices):
+            raise ValueError("choices must be unique")
+        if self.embedding is not None:
+            if set(self.embedding) != set(self.choices):
+                raise ValueError("embedding must have exactly one vector per choice")
+            dims = {len(v) for v in self.embedding.values()}
+            if len(dims) != 1 or 0 in dims:
+                raise ValueError("embedding vectors must share one non-zero dimension")
+            if not all(math.isfinite(f) for v in self.embedding.values() for f in v):
+                raise ValueError("embedding values must be finite")
+        return self
+
+
+class ContinuousDomain(_Strict):
+    """A box: `low[i] < high[i]`, finite, 1 to MAX_DIM dimensions."""
+
+    kind: Literal["continuous"] = "continuous"
+    low: list[float] = Field(min_length=1, max_length=MAX_DIM)
+    high: list[float] = Field(min_length=1, max_length=MAX_DIM)
+
+    @model_validator(mode="after")
+    def _check(self) -> ContinuousDomain:
+        if len(self.low) != len(self.high):
+            raise ValueError("low and high must have the same length")
+        if not all(math.isfinite(v) for v in [*self.low, *self.high]):
+            raise ValueError("bounds must be finite numbers")
+        if any(lo >= hi for lo, hi in zip(self.low, self.high, strict=True)):
+            raise ValueError("every low must be below its high")
+        return self
+
+
+Domain = Annotated[CategoricalDomain | ContinuousDomain, Field(discriminator="kind")]
+Role = Literal["failure", "decision", "context", "connection"]
+
+
+class Node(_Strict):
+    id: Label
+    role: Role
+    label: Label
+    domain: Domain | None = None
+
+
+class Edge(_Strict):
+    source: Label
+    target: Label
+    label: Annotated[str, Field(max_length=MAX_LABEL)] = ""
+
+
+class Graph(_Strict):
+    """A causal graph of one failure: failure, decision, context and connection vertexes."""
+
+    nodes: list[Node] = Field(min_length=1, max_length=MAX_NODES)
+    edges: list[Edge] = Field(default_factory=list, max_length=MAX_EDGES)
+
+
+class Source(BaseModel):
+    """Provenance of a point; extra keys are kept."""
+
+    model_config = ConfigDict(extra="allow")
+
+    task: str | None = Field(default=None, max_length=MAX_LABEL)
+    run: str | None = Field(default=None, max_length=MAX_LABEL)
+    rollout: int | None = None
+    worker: str | None = Field(default=None, max_length=MAX_LABEL)
+    time: datetime | None = None
+
+
+class PointIn(_Strict):
+    graph: Graph
+    x: dict[Label, Value]
+    feasible: bool
+    source: Source | None = None
+    key: Annotated[str, Field(min_length=1, max_length=200)] | None = None
+
+
+class PointsIn(_Strict):
+    points: list[PointIn] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+
+
+class PointResult(BaseModel):
+    type_id: str
+    point_id: int
+    new_type: bool
+
+
+class PointsOut(BaseModel):
+    results: list[PointResult]
+
+
+class MatchIn(_Strict):
+    graphs: list[Graph] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+
+
+class MatchResult(BaseModel):
+    type_id: str
+    exists: bool
+    n_points: int
+
+
+class KnowledgeBaseIn(_Strict):
+    name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
+
+
+class KnowledgeBase(BaseModel):
+    name: str
+    n_types: int = 0
+    n_points: int = 0
+    created_at: datetime | None = None
+
+
+class TypeSummary(BaseModel):
+    type_id: str
+    failure: str
+    decisions: list[str]
+    context: list[str]
+    n_points: int
+    n_infeasible: int
+    created_at: datetime | None = None
+    updated_at: datetime | None = None
+
+
+class SurrogateState(BaseModel):
+    """What the per-type surrogate knows right now; `None` fields until a first fit."""
+
+    model_config = ConfigDict(extra="allow")
+
+    status: str
+    version: int | None = None
+    n_fitted: int = 0
+    lengthscales: list[float] | None = None
+    fit_seconds: float | None = None
+    train_accuracy: float | None = None
+
+
+class TypeDetail(TypeSummary):
+    graph: Graph
+    space: dict[str, Domain]
+    surrogate: SurrogateState | None = None
+
+
+class PointOut(BaseModel):
+    point_id: int
+    type_id: str
+    x: dict[str, Value]
+    feasible: bool
+    source: dict[str, Any] | None = None
+    key: str | None = None
+    created_at: datetime | None = None
+
+
+class PointsPage(BaseModel):
+    points: list[PointOut]
+    next_cursor: str | None = None
+
+
+class PredictIn(_Strict):
+    x: list[dict[Label, Value]] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+
+
+class PredictOut(BaseModel):
+    p_feasible: list[float]
+
+
+class Constraint(_Strict):
+    type_id: Label
+    bind: dict[Label, Label] = Field(min_length=1)
+
+
+class SuggestIn(_Strict):
+    space: dict[Label, Domain] = Field(min_length=1, max_length=MAX_DIM)
+    fixed: dict[Label, Value] = Field(default_factory=dict)
+    constraints: list[Constraint] = Field(default_factory=list, max_length=64)
+    exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
+    seed: int | None = None
+
+
+class SuggestOut(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+    x: dict[str, Value]
+    mpf: float
+    p_feasible: dict[str, float]
+
+
+class Health(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+    status: Literal["ok"]
+    version: str
+    database: str

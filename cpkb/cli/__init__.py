@@ -1,0 +1,47 @@
+"""The `cpkb` command: one entry point, subcommands registered by small modules.
+
+Each module in `COMMAND_MODULES` exposes `register(subparsers)`; modules keep heavy imports
+inside their handlers so that `cpkb --help` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMAND_MODULES = (
+    "cpkb.cli.service",
+    "cpkb.cli.world",
+    "cpkb.cli.planning",
+    "cpkb.cli.bench",
+)
+
+
+class CliError(Exception):
+    """A user mistake: printed as one line on stderr, exit status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="cpkb", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+            continue
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except CliError as exc:
+        print(f"cpkb {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
