@@ -1,0 +1,230 @@
+"""Access control and request hygiene for the knowledge-base service.
+
+Off by default, so a laptop user needs nothing: with no token configured every route is open.
+Once a token is set (`CPKB_TOKEN`, or `CPKB_TOKENS_FILE` with one token per line), every write
+and delete needs `Authorization: Bearer <token>` (401 without); reads stay open unless
+`CPKB_AUTH_READS` is true. Classification is deny-by-default: a route is a read only if its
+method is GET/HEAD/OPTIONS or it is one of the POST queries below that store nothing, so a
+new write route is protected without anyone remembering to mark it.
+
+Wiring (two lines in the app factory):
+    app = FastAPI(..., dependencies=[Depends(authorize)])
+    install_security(app, settings)
+"""
+
+from __future__ import annotations
+
+import hmac
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Protocol
+
+from fastapi import Depends, FastAPI, HTTPException, Request, status
+from fastapi.middleware.cors import CORSMiddleware
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from pydantic import SecretStr
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+# POST routes that only query: they take a body because their question does not fit a URL.
+READ_ONLY_POST_SUFFIXES = ("/types/match", "/predict", "/suggest")
+# Always open, so that liveness probes and the API docs work without a token.
+OPEN_PATHS = frozenset({"/healthz", "/docs", "/redoc", "/openapi.json"})
+
+
+class SecurityConfigError(ValueError):
+    """The access settings cannot be honoured (say, a tokens file that cannot be read)."""
+
+
+class AccessSettings(Protocol):
+    """The fields of `server.settings.Settings` this module reads."""
+
+    token: SecretStr | None
+    tokens_file: Path | None
+    auth_reads: bool
+    cors_origins: list[str]
+    max_body_bytes: int
+
+
+def read_tokens_file(path: Path) -> list[str]:
+    """Tokens from a file: one per line, blank lines and `#` comments ignored.
+
+    An unreadable or empty file is an error at start-up: failing open would silently
+    publish a knowledge base that its owner meant to protect.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SecurityConfigError(f"cannot read tokens file {path}: {exc.strerror}") from exc
+    tokens = [line.strip() for line in text.splitlines()]
+    tokens = [t for t in tokens if t and not t.startswith("#")]
+    if not tokens:
+        raise SecurityConfigError(f"tokens file {path} holds no token")
+    return tokens
+
+
+@dataclass(frozen=True)
+class AccessPolicy:
+    """Which tokens are valid and whether reads need one; no tokens means open."""
+
+    tokens: tuple[bytes, ...] = ()
+    guard_reads: bool = False
+
+    @classmethod
+    def from_tokens(cls, tokens: Iterable[str], guard_reads: bool = False) -> AccessPolicy:
+        cleaned = tuple(t.strip().encode("utf-8") for t in tokens if t and t.strip())
+        return cls(tokens=cleaned, guard_reads=guard_reads)
+
+    @classmethod
+    def from_settings(cls, settings: AccessSettings) -> AccessPolicy:
+        tokens: list[str] = []
+        if settings.token is not None and settings.token.get_secret_value().strip():
+            tokens.append(settings.token.get_secret_value())
+        if settings.tokens_file is not None:
+            tokens.extend(read_tokens_file(settings.tokens_file))
+        return cls.from_tokens(tokens, guard_reads=settings.auth_reads)
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.tokens)
+
+    def accepts(self, presented: str | None) -> bool:
+        """Constant-time check of a presented token against every configured one.
+
+        Every configured token is compared (no early exit), so timing reveals neither
+        which token matched nor how long a matching prefix was.
+        """
+        if presented is None:
+            return False
+        candidate = presented.encode("utf-8")
+        matched = False
+        for token in self.tokens:
+            matched |= hmac.compare_digest(candidate, token)
+        return matched
+
+    def needs_token(self, method: str, route_path: str) -> bool:
+        if not self.enabled or route_path in OPEN_PATHS:
+            return False
+        return self.guard_reads or is_write(method, route_path)
+
+
+def is_write(method: str, route_path: str) -> bool:
+    """Deny by default: anything but a read method or a known query POST is a write."""
+    method = method.upper()
+    if method in READ_METHODS:
+        return False
+    return not (method == "POST" and route_path.endswith(READ_ONLY_POST_SUFFIXES))
+
+
+_bearer = HTTPBearer(
+    auto_error=False,
+    description="Needed for writes and deletes when the server has a token (CPKB_TOKEN).",
+)
+
+
+async def authorize(
+    request: Request,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """App-wide dependency: 401 when this route needs a token and none valid was sent."""
+    policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
+    route = request.scope.get("route")
+    route_path = getattr(route, "path", request.url.path)
+    if not policy.needs_token(request.method, route_path):
+        return
+    if credentials is None:
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            detail="this server needs a token: send 'Authorization: Bearer <token>' "
+            "(client: token=..., CLI: --token or CPKB_TOKEN)",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+    if not policy.accepts(credentials.credentials):
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            detail="invalid token",
+            headers={"WWW-Authenticate": 'Bearer error="invalid_token"'},
+        )
+
+
+class BodySizeLimit:
+    """ASGI middleware: a body over `max_bytes` gets a 413 before anyone parses it.
+
+    Checks the declared Content-Length first, then reads the body itself up to the limit
+    (a chunked upload declares no length), and replays it to the app once it is within bounds.
+    """
+
+    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        declared = dict(scope.get("headers") or []).get(b"content-length")
+        if declared is not None and declared.isdigit() and int(declared) > self.max_bytes:
+            await self._reject(send)
+            return
+        chunks: list[bytes] = []
+        received = 0
+        while True:
+            message = await receive()
+            if message["type"] != "http.request":
+                await self.app(scope, _replay([message]), send)
+                return
+            chunk = message.get("body", b"")
+            received += len(chunk)
+            if received > self.max_bytes:
+                await self._reject(send)
+                return
+            chunks.append(chunk)
+            if not message.get("more_body", False):
+                break
+        body = {"type": "http.request", "body": b"".join(chunks), "more_body": False}
+        await self.app(scope, _replay([body], then=receive), send)
+
+    async def _reject(self, send: Send) -> None:
+        body = (
+            b'{"detail":"request body too large: the limit is %d bytes '
+            b'(CPKB_MAX_BODY_BYTES); send fewer points per request"}' % self.max_bytes
+        )
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 413,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode()),
+                ],
+            }
+        )
+        await send({"type": "http.response.body", "body": body})
+
+
+def _replay(messages: list[Message], then: Receive | None = None) -> Receive:
+    """A `receive` that hands out `messages` first, then defers to `then` (disconnects)."""
+    pending = list(messages)
+
+    async def receive() -> Message:
+        if pending:
+            return pending.pop(0)
+        if then is None:
+            return {"type": "http.disconnect"}
+        return await then()
+
+    return receive
+
+
+def install_security(app: FastAPI, settings: AccessSettings) -> None:
+    """Attach the access policy, the body-size limit and (only when configured) CORS."""
+    app.state.access_policy = AccessPolicy.from_settings(settings)
+    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    if settings.cors_origins:
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origins,
+            allow_methods=["GET", "POST", "DELETE"],
+            allow_headers=["Authorization", "Content-Type"],
+        )
