@@ -1,0 +1,270 @@
+"""Operations: Prometheus metrics at `/metrics` and structured (JSON) logs.
+
+Metrics live in one module-level registry so that the service, the surrogate engine and the
+middleware all count into the same series, however many apps a process creates (tests do).
+Every name starts with `cpkb_`. Routes are labelled by their template (`/v1/kbs/{kb}/points`),
+never by the concrete path, so that the number of series stays bounded.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import time
+from collections.abc import Callable, Iterable
+from datetime import UTC, datetime
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.responses import Response
+from prometheus_client import (
+    CONTENT_TYPE_LATEST,
+    CollectorRegistry,
+    Counter,
+    Histogram,
+    generate_latest,
+)
+from prometheus_client.core import GaugeMetricFamily
+from prometheus_client.registry import Collector
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+REGISTRY = CollectorRegistry(auto_describe=True)
+
+# Latency buckets in seconds: from a cached read (~1 ms) to a slow cold fit on a busy machine.
+_LATENCY_BUCKETS = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
+_FIT_BUCKETS = (0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 120.0)
+
+HTTP_REQUESTS = Counter(
+    "cpkb_http_requests",
+    "HTTP requests answered, by method, route template and status code.",
+    ("method", "route", "status"),
+    registry=REGISTRY,
+)
+HTTP_LATENCY = Histogram(
+    "cpkb_http_request_duration_seconds",
+    "Time to answer an HTTP request, by method and route template.",
+    ("method", "route"),
+    buckets=_LATENCY_BUCKETS,
+    registry=REGISTRY,
+)
+SUGGEST_LATENCY = Histogram(
+    "cpkb_suggest_duration_seconds",
+    "Time to answer a suggest request (MPF acquisition), successful answers only.",
+    buckets=_LATENCY_BUCKETS,
+    registry=REGISTRY,
+)
+POINTS_INGESTED = Counter(
+    "cpkb_points_ingested",
+    "CP points stored (repeated idempotency keys are not counted), by knowledge base.",
+    ("kb",),
+    registry=REGISTRY,
+)
+TYPES_CREATED = Counter(
+    "cpkb_types_created",
+    "CP types created by a points post, by knowledge base.",
+    ("kb",),
+    registry=REGISTRY,
+)
+FITS = Counter(
+    "cpkb_surrogate_fits",
+    "Surrogate fits finished, by outcome (ok or error).",
+    ("outcome",),
+    registry=REGISTRY,
+)
+FIT_DURATION = Histogram(
+    "cpkb_surrogate_fit_duration_seconds",
+    "Wall time of one surrogate fit.",
+    buckets=_FIT_BUCKETS,
+    registry=REGISTRY,
+)
+FIT_POINTS = Histogram(
+    "cpkb_surrogate_fit_points",
+    "Points a surrogate fit was trained on.",
+    buckets=(4, 10, 30, 100, 300, 1000, 3000, 10000, 30000),
+    registry=REGISTRY,
+)
+
+UNMATCHED_ROUTE = "<unmatched>"
+_access_log = logging.getLogger("cpkb.access")
+
+
+def record_points_ingested(kb: str, n_new: int, n_new_types: int = 0) -> None:
+    """Called by the service after a points post commits: `n_new` points actually stored."""
+    if n_new > 0:
+        POINTS_INGESTED.labels(kb=kb).inc(n_new)
+    if n_new_types > 0:
+        TYPES_CREATED.labels(kb=kb).inc(n_new_types)
+
+
+def record_fit(seconds: float, n_points: int, ok: bool = True) -> None:
+    """Called by the surrogate engine after each fit (cold or warm)."""
+    FITS.labels(outcome="ok" if ok else "error").inc()
+    if ok:
+        FIT_DURATION.observe(seconds)
+        FIT_POINTS.observe(n_points)
+
+
+class _StoreCollector(Collector):
+    """Scrape-time gauges read from the store: types and points per knowledge base.
+
+    `read` returns rows of (kb name, number of types, number of points); it is the service's
+    own listing, so the gauges agree with `GET /v1/kbs`.
+    """
+
+    def __init__(self, read: Callable[[], Iterable[tuple[str, int, int]]]) -> None:
+        self._read = read
+
+    def collect(self) -> Iterable[GaugeMetricFamily]:
+        types = GaugeMetricFamily(
+            "cpkb_active_types", "CP types stored, by knowledge base.", labels=["kb"]
+        )
+        points = GaugeMetricFamily(
+            "cpkb_points_stored", "CP points stored, by knowledge base.", labels=["kb"]
+        )
+        try:
+            rows = list(self._read())
+        except Exception:  # a scrape must not fail because the database is briefly away
+            logging.getLogger("cpkb.metrics").exception("reading store gauges failed")
+            rows = []
+        for kb, n_types, n_points in rows:
+            types.add_metric([kb], n_types)
+            points.add_metric([kb], n_points)
+        yield types
+        yield points
+
+    def describe(self) -> Iterable[GaugeMetricFamily]:
+        return []
+
+
+_store_collector: _StoreCollector | None = None
+
+
+def set_store_reader(read: Callable[[], Iterable[tuple[str, int, int]]]) -> None:
+    """Point the store gauges at the app's database (the latest app created wins)."""
+    global _store_collector
+    if _store_collector is not None:
+        REGISTRY.unregister(_store_collector)
+    _store_collector = _StoreCollector(read)
+    REGISTRY.register(_store_collector)
+
+
+def route_template(scope: Scope) -> str:
+    """The matched route's path template, or a fixed label for paths no route matched."""
+    route = scope.get("route")
+    path = getattr(route, "path", None)
+    return path if isinstance(path, str) else UNMATCHED_ROUTE
+
+
+class MetricsMiddleware:
+    """Pure ASGI middleware: counts and times every HTTP request by route template, and writes
+    one structured access-log record per request."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        start = time.perf_counter()
+        status = 500
+
+        async def send_and_record(message: Message) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = int(message["status"])
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_and_record)
+        finally:
+            elapsed = time.perf_counter() - start
+            method = scope.get("method", "")
+            route = route_template(scope)
+            HTTP_REQUESTS.labels(method=method, route=route, status=str(status)).inc()
+            HTTP_LATENCY.labels(method=method, route=route).observe(elapsed)
+            if route.endswith("/suggest") and status < 400:
+                SUGGEST_LATENCY.observe(elapsed)
+            _access_log.info(
+                "request",
+                extra={
+                    "method": method,
+                    "path": scope.get("path", ""),
+                    "route": route,
+                    "status": status,
+                    "duration_ms": round(elapsed * 1000.0, 3),
+                },
+            )
+
+
+def metrics_response() -> Response:
+    return Response(generate_latest(REGISTRY), media_type=CONTENT_TYPE_LATEST)
+
+
+def install_observability(
+    app: FastAPI, store_reader: Callable[[], Iterable[tuple[str, int, int]]] | None = None
+) -> None:
+    """Add `/metrics` and the timing middleware to `app`; `store_reader` feeds the gauges."""
+    app.add_middleware(MetricsMiddleware)
+    app.add_api_route(
+        "/metrics",
+        metrics_response,
+        methods=["GET"],
+        include_in_schema=False,
+        response_class=Response,
+    )
+    if store_reader is not None:
+        set_store_reader(store_reader)
+
+
+# Attributes every LogRecord has; anything else on a record came from `extra=` and is logged.
+_RECORD_FIELDS = frozenset(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {
+    "message",
+    "asctime",
+    "taskName",
+}
+
+
+class JsonFormatter(logging.Formatter):
+    """One JSON object per line: time, level, logger, message, and every `extra=` field."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        entry: dict[str, Any] = {
+            "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds"),
+            "level": record.levelname.lower(),
+            "logger": record.name,
+            "message": record.getMessage(),
+        }
+        for key, value in vars(record).items():
+            if key not in _RECORD_FIELDS and not key.startswith("_"):
+                entry[key] = value
+        if record.exc_info:
+            entry["exception"] = self.formatException(record.exc_info)
+        return json.dumps(entry, default=str)
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever `sys.stderr` is at the time of the record (test runners swap it)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+
+    @property  # type: ignore[override]
+    def stream(self) -> Any:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value: Any) -> None:
+        """The stream is always the current stderr; the base class's assignment is ignored."""
+
+
+def configure_json_logging(level: str | int = "INFO") -> None:
+    """Send every log record (the service's, uvicorn's with `log_config=None`) to stderr as JSON
+    lines. Called once by the serving command; idempotent."""
+    root = logging.getLogger()
+    root.setLevel(level if isinstance(level, int) else level.upper())
+    if not any(isinstance(h, _StderrHandler) for h in root.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(JsonFormatter())
+        root.addHandler(handler)
