@@ -1,0 +1,172 @@
+"""Backtracking a failed transition into its causal graph (DESIGN.md section 3, paper IV-A).
+
+From the failed operator call, semantic backtracking follows its `#` arguments through the
+skeleton: a variable produced by a decision layer becomes a *decision* vertex (the leaf of the
+chain, with its producer's constant arguments as context), one produced by a transition call
+becomes a *connection* vertex labelled by that operator, and the chain continues through its
+arguments. Constants (bodies, regions, `pose0`, `config0`) are *context* vertexes. Geometric
+backtracking adds the culprit the simulator names: a context vertex for that body, linked to the
+decision vertex that placed it when an earlier decision of this skeleton did.
+
+Labels are task-independent: operator names, workspace constant and body names, and decision
+kinds. Decision labels stay unique by recency: the latest `#dir` in the graph is `#dir`, the one
+before `#dir-1`, and so on, so the two grasps of the regrasp task stay apart while a failure at
+the first grasp of any task gets the same labels. `bind` maps those labels back to this task's
+variables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from client.models import Edge, Graph, Node
+from planner.skeleton import DecisionVar, OperatorCall, Skeleton
+from planner.world import CheckResult
+
+PLACE_KINDS = ("#pose",)
+
+
+@dataclass(frozen=True)
+class FailureGraph:
+    """A causal graph plus how its decision labels map to this task's decision variables."""
+
+    graph: Graph
+    bind: dict[str, str]
+    check: tuple[int, int]
+
+    def x(self, bindings: dict) -> dict:
+        """The point for this graph's type: the values of its decision vertexes."""
+        return {label: bindings[var] for label, var in self.bind.items()}
+
+
+class _Builder:
+    def __init__(self, skeleton: Skeleton, transition_index: int) -> None:
+        self.skeleton = skeleton
+        self.nodes: dict[str, Node] = {}
+        self.edges: list[Edge] = []
+        self.decisions: dict[str, DecisionVar] = {}
+        self.producers: dict[str, OperatorCall] = {}
+        self.decision_of: dict[str, DecisionVar] = {}
+        transitions_seen = 0
+        for layer in skeleton.layers:
+            if layer.kind == "transition":
+                if transitions_seen > transition_index:
+                    break
+                transitions_seen += 1
+            if layer.decision is not None:
+                self.decision_of[layer.decision.var] = layer.decision
+            for call in layer.calls:
+                for out in call.outputs:
+                    self.producers[out] = call
+
+    def context(self, name: str) -> str:
+        node_id = f"c:{name}"
+        self.nodes.setdefault(node_id, Node(id=node_id, role="context", label=name))
+        return node_id
+
+    def edge(self, source: str, target: str, label: str) -> None:
+        candidate = Edge(source=source, target=target, label=label)
+        if candidate not in self.edges:
+            self.edges.append(candidate)
+
+    def consume(self, call: OperatorCall, target: str) -> None:
+        """Link every argument of `call` into `target`, backtracking `#` variables."""
+        for position, arg in enumerate(call.args):
+            self.edge(self.source_of(arg), target, f"arg{position}")
+
+    def source_of(self, arg: str) -> str:
+        if not arg.startswith("#"):
+            return self.context(arg)
+        if arg in self.decision_of:
+            return self.decision(self.decision_of[arg])
+        producer = self.producers.get(arg)
+        if producer is None:
+            raise ValueError(f"no call of the skeleton produces {arg}")
+        node_id = f"x:{arg}"
+        if node_id not in self.nodes:
+            self.nodes[node_id] = Node(id=node_id, role="connection", label=producer.name)
+            self.consume(producer, node_id)
+        return node_id
+
+    def decision(self, var: DecisionVar) -> str:
+        node_id = f"d:{var.var}"
+        if node_id not in self.nodes:
+            self.nodes[node_id] = Node(id=node_id, role="decision", label=var.kind)
+            self.decisions[var.var] = var
+            for position, arg in enumerate(var.producer.args):
+                self.edge(self.context(arg), node_id, f"arg{position}")
+        return node_id
+
+    def placed_by(self, body: str, before_transition: int) -> DecisionVar | None:
+        """The latest placement decision of `body` whose transition completed earlier."""
+        placing: DecisionVar | None = None
+        for index, var in enumerate(self.skeleton.decisions):
+            if index >= before_transition:
+                break
+            if var.kind in PLACE_KINDS and var.producer.args[:1] == (body,):
+                placing = var
+        return placing
+
+
+def label_decisions(skeleton: Skeleton, nodes: dict[str, Node], chosen: dict[str, DecisionVar]):
+    """Rename decision vertexes by recency within the graph: `#dir`, `#dir-1`, ..."""
+    order = [v.var for v in skeleton.decisions]
+    bind: dict[str, str] = {}
+    by_kind: dict[str, list[str]] = {}
+    for var in sorted(chosen, key=order.index, reverse=True):
+        kind = chosen[var].kind
+        rank = len(by_kind.setdefault(kind, []))
+        by_kind[kind].append(var)
+        label = kind if rank == 0 else f"{kind}-{rank}"
+        node = nodes[f"d:{var}"]
+        nodes[f"d:{var}"] = Node(
+            id=node.id, role="decision", label=label, domain=chosen[var].domain
+        )
+        bind[label] = var
+    return bind
+
+
+def failure_graph(
+    skeleton: Skeleton, transition_index: int, check: CheckResult, culprit: str | None = None
+) -> FailureGraph:
+    """The causal graph of `check` failing in transition layer `transition_index`.
+
+    `culprit` overrides the check's first culprit (used to enumerate the graphs a task could
+    produce); by default the body most in contact is taken, as the authors do.
+    """
+    layer = skeleton.transitions[transition_index]
+    call_index = layer.calls.index(check.call)
+    builder = _Builder(skeleton, transition_index)
+    builder.nodes["failure"] = Node(id="failure", role="failure", label=check.call.name)
+    builder.consume(check.call, "failure")
+    body = culprit if culprit is not None else (check.culprits[0].body if check.culprits else None)
+    if body is not None:
+        placing = builder.placed_by(body, transition_index)
+        body_id = builder.context(body)
+        builder.edge(body_id, "failure", "collides")
+        if placing is not None:
+            builder.edge(builder.decision(placing), body_id, "at")
+    bind = label_decisions(skeleton, builder.nodes, builder.decisions)
+    graph = _task_independent_ids(builder.nodes, builder.edges)
+    return FailureGraph(graph=graph, bind=bind, check=(transition_index, call_index))
+
+
+def _task_independent_ids(nodes: dict[str, Node], edges: list[Edge]) -> Graph:
+    """Rename vertexes after their labels (connections numbered in build order), so the same
+    failure gives the very same graph in every task, not only the same type ID."""
+    rename: dict[str, str] = {}
+    connections = 0
+    for node_id, node in nodes.items():
+        if node.role == "decision":
+            rename[node_id] = f"d:{node.label}"
+        elif node.role == "connection":
+            connections += 1
+            rename[node_id] = f"x{connections}:{node.label}"
+        else:
+            rename[node_id] = node_id
+    return Graph(
+        nodes=[n.model_copy(update={"id": rename[i]}) for i, n in nodes.items()],
+        edges=[
+            Edge(source=rename[e.source], target=rename[e.target], label=e.label) for e in edges
+        ],
+    )

@@ -1,0 +1,253 @@
+"""The knowledge base in the loop of one binding search.
+
+The session observes every transition the search runs. A failed check becomes a causal graph
+and an infeasible point; the first time a graph is met in this run, `types/match` tells its type
+ID, and the type becomes *active* at that check with its labels bound to this task's variables
+(if the type existed before, this is transfer: its points count as activated). Every later
+evaluation of an active type's check adds a labelled point: feasible when the check passes,
+infeasible when it fails the same way. Before any failure, `prematch` asks `types/match` about
+every graph this task could produce (each check x each culprit the world may report), so types
+that earlier tasks learned guide the very first expansions.
+
+Points go out in one batch per rollout on a background thread; only `match` and `suggest` block
+the search, and their time is `kb_s`.
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from client.models import (
+    Constraint,
+    Graph,
+    MatchResult,
+    PointIn,
+    Source,
+    SuggestIn,
+    SuggestOut,
+    Value,
+)
+from planner.failures import FailureGraph, failure_graph
+from planner.knowledge.poster import PointPoster
+from planner.skeleton import DecisionVar
+from planner.world import BindingWorld, CheckResult, TransitionOutcome
+
+
+class KnowledgeClient(Protocol):
+    """The three calls of `client.CpkbClient` the planner needs."""
+
+    def post_points(self, kb: str, points: Sequence[PointIn]) -> Any: ...
+
+    def match_types(self, kb: str, graphs: Sequence[Graph]) -> list[MatchResult]: ...
+
+    def suggest(self, kb: str, request: SuggestIn) -> SuggestOut: ...
+
+
+@dataclass(frozen=True)
+class Activation:
+    """A type bound to one check of this task, through its decision labels."""
+
+    type_id: str
+    failure: FailureGraph
+    transferred: bool
+    n_points: int
+
+    @property
+    def vars(self) -> frozenset[str]:
+        return frozenset(self.failure.bind.values())
+
+
+@dataclass
+class KnowledgeStats:
+    types_activated: int = 0
+    points_activated: int = 0
+    types_active: int = 0
+    suggestions: int = 0
+    kb_s: float = 0.0
+    errors: int = 0
+    prematched: int = 0
+    events: list[str] = field(default_factory=list)
+
+
+class KnowledgeSession:
+    def __init__(
+        self,
+        client: KnowledgeClient,
+        kb: str,
+        world: BindingWorld,
+        *,
+        run: str | None = None,
+        worker: str | None = None,
+        background: bool = True,
+    ) -> None:
+        self.client = client
+        self.kb = kb
+        self.world = world
+        self.skeleton = world.skeleton
+        self.run = run or uuid.uuid4().hex[:16]
+        self.worker = worker
+        self.stats = KnowledgeStats()
+        self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
+        self._graphs: dict[tuple[int, int, str | None], FailureGraph] = {}
+        self._active: dict[tuple[int, int, str | None], Activation] = {}
+        self._by_check: dict[tuple[int, int], list[Activation]] = {}
+        self._pending: list[tuple[FailureGraph, dict[str, Value], bool]] = []
+        self._unmatched: dict[tuple[int, int, str | None], FailureGraph] = {}
+        self._rollout = 0
+
+    # -- activation ---------------------------------------------------------------------------
+
+    def prematch(self) -> None:
+        """Activate the known types among every graph this task could produce."""
+        candidates = (None, *getattr(self.world, "culprit_candidates", ()))
+        for t, layer in enumerate(self.skeleton.transitions):
+            for call in layer.calls:
+                for culprit in candidates:
+                    key = (t, layer.calls.index(call), culprit)
+                    fg = self._graph(key, t, CheckResult(call, False), culprit)
+                    if fg.bind:
+                        self._unmatched[key] = fg
+        found = self._match(only_existing=True)
+        self.stats.prematched = found
+
+    def _graph(
+        self, key: tuple[int, int, str | None], t: int, check: CheckResult, culprit: str | None
+    ) -> FailureGraph:
+        if key not in self._graphs:
+            self._graphs[key] = failure_graph(self.skeleton, t, check, culprit)
+        return self._graphs[key]
+
+    def _match(self, *, only_existing: bool) -> int:
+        """Ask the dictionary about the graphs met (or imagined) but not matched yet."""
+        if not self._unmatched:
+            return 0
+        keys = list(self._unmatched)
+        graphs = [self._unmatched[k].graph for k in keys]
+        started = time.perf_counter()
+        try:
+            results = self.client.match_types(self.kb, graphs)
+        except Exception as exc:  # a knowledge-base outage must not stop the search
+            self.stats.errors += 1
+            self.stats.events.append(f"match failed: {exc}")
+            return 0
+        finally:
+            self.stats.kb_s += time.perf_counter() - started
+        activated = 0
+        for key, result in zip(keys, results, strict=True):
+            fg = self._unmatched.pop(key)
+            if only_existing and not result.exists:
+                continue
+            self._activate(key, fg, result)
+            activated += int(result.exists)
+        return activated
+
+    def _activate(self, key, fg: FailureGraph, result: MatchResult) -> None:
+        transferred = result.exists and result.n_points > 0
+        activation = Activation(result.type_id, fg, transferred, result.n_points)
+        self._active[key] = activation
+        self._by_check.setdefault(fg.check, []).append(activation)
+        self.stats.types_active += 1
+        if transferred:
+            self.stats.types_activated += 1
+            self.stats.points_activated += result.n_points
+
+    # -- observing the search -----------------------------------------------------------------
+
+    def on_transition(
+        self, index: int, bindings: dict[str, Value], outcome: TransitionOutcome, rollout: int
+    ) -> None:
+        self._rollout = rollout
+        for position, check in enumerate(outcome.checks):
+            if check.ok:
+                for activation in self._by_check.get((index, position), ()):
+                    x = activation.failure.x(bindings)
+                    self._pending.append((activation.failure, x, True))
+                continue
+            culprit = check.culprits[0].body if check.culprits else None
+            key = (index, position, culprit)
+            fg = self._graph(key, index, check, culprit)
+            if not fg.bind:
+                continue
+            self._pending.append((fg, fg.x(bindings), False))
+            if key not in self._active:
+                self._unmatched[key] = fg
+
+    def on_rollout_end(self, rollout: int) -> None:
+        """Activate the types of failures met for the first time, then post this rollout's
+        points in one batch (in the background)."""
+        self._match(only_existing=False)
+        source = Source(task=self.world.name, run=self.run, rollout=rollout, worker=self.worker)
+        points = [
+            PointIn(
+                graph=fg.graph,
+                x=x,
+                feasible=feasible,
+                source=source,
+                key=f"{self.run}:{rollout}:{i}",
+            )
+            for i, (fg, x, feasible) in enumerate(self._pending)
+        ]
+        self._pending = []
+        self.poster.submit(points)
+
+    # -- guiding the search -------------------------------------------------------------------
+
+    def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
+        """The active types whose decision vertexes are this variable plus earlier ones."""
+        known = {*path, var}
+        seen: set[tuple[str, tuple[tuple[str, str], ...]]] = set()
+        constraints: list[Constraint] = []
+        for activation in self._active.values():
+            if var not in activation.vars or not activation.vars <= known:
+                continue
+            bind = tuple(sorted(activation.failure.bind.items()))
+            if (activation.type_id, bind) in seen:
+                continue
+            seen.add((activation.type_id, bind))
+            constraints.append(Constraint(type_id=activation.type_id, bind=dict(bind)))
+        return constraints
+
+    def suggest(
+        self,
+        var: DecisionVar,
+        path: dict[str, Value],
+        siblings: Sequence[Value],
+        constraints: list[Constraint],
+        seed: int,
+    ) -> SuggestOut | None:
+        """The MPF suggestion of the service, or None if the service could not answer."""
+        bound = {v for c in constraints for v in c.bind.values()} - {var.var}
+        request = SuggestIn(
+            space={var.var: var.domain},
+            fixed={v: path[v] for v in sorted(bound)},
+            constraints=constraints,
+            exclude=[{var.var: value} for value in siblings],
+            seed=seed,
+        )
+        started = time.perf_counter()
+        try:
+            answer = self.client.suggest(self.kb, request)
+        except Exception as exc:  # fall back to space filling rather than stop the search
+            self.stats.errors += 1
+            self.stats.events.append(f"suggest failed: {exc}")
+            return None
+        finally:
+            self.stats.kb_s += time.perf_counter() - started
+        self.stats.suggestions += 1
+        return answer
+
+    def close(self) -> None:
+        """Post what is left and wait for the background poster."""
+        if self._pending:
+            self.on_rollout_end(self._rollout)
+        started = time.perf_counter()
+        self.poster.close()
+        self.stats.kb_s += time.perf_counter() - started
+
+    @property
+    def points_posted(self) -> int:
+        return self.poster.posted

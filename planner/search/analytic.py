@@ -1,0 +1,117 @@
+"""Small analytic worlds: the desk skeleton of Table I with closed-form checks, no simulator.
+
+They implement `BindingWorld` so the tree search, the samplers and the knowledge-base loop can
+be exercised (and compared) in milliseconds. `analytic_world("desk")` and `analytic_world("deskP")`
+share one workspace: the same shelf region (`region2`) and the same shelf constraint, so a
+failure type learned in deskP recurs in desk, as in the paper's Fig. 4.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from client.models import CategoricalDomain, ContinuousDomain, Value
+from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
+from planner.world import CheckResult, Culprit, TransitionOutcome
+
+DIRECTIONS = {
+    "front": [-1.0, 0.0, 0.0],
+    "right": [0.0, 1.0, 0.0],
+    "top": [0.0, 0.0, -1.0],
+    "back": [1.0, 0.0, 0.0],
+    "left": [0.0, -1.0, 0.0],
+}
+GRASP_DOMAIN = CategoricalDomain(choices=list(DIRECTIONS), embedding=DIRECTIONS)
+POSE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0])
+
+# A check: the bindings so far -> None (passes) or the culprit bodies of its failure.
+Check = Callable[[Mapping[str, Value]], tuple[str, ...] | None]
+
+
+def pick_place_skeleton(start: str, goal_region: str) -> Skeleton:
+    """Table I: grasp at `start`, place in `goal_region`."""
+    grasp = OperatorCall("Sample-grasp", ("body",), ("#dir1",))
+    place = OperatorCall("Sample-pose", ("body", goal_region), ("#pose12",))
+    return Skeleton(
+        (
+            Layer("decision", (grasp,), DecisionVar("#dir1", "#dir", GRASP_DOMAIN, grasp)),
+            Layer(
+                "transition",
+                (
+                    OperatorCall("Inv-kin", ("body", start, "#dir1"), ("#config1",)),
+                    OperatorCall("Plan-motion", ("config0", "#config1"), ("#traj01",)),
+                    OperatorCall("Move-Pick", ("body", "#traj01")),
+                ),
+            ),
+            Layer("decision", (place,), DecisionVar("#pose12", "#pose", POSE_DOMAIN, place)),
+            Layer(
+                "transition",
+                (
+                    OperatorCall("Inv-kin", ("body", "#pose12", "#dir1"), ("#config2",)),
+                    OperatorCall("Plan-motion", ("#config1", "#config2"), ("#traj12",)),
+                    OperatorCall("Move-Place", ("body", "#traj12")),
+                ),
+            ),
+        )
+    )
+
+
+@dataclass
+class AnalyticWorld:
+    """A `BindingWorld` whose checks are functions; `checks[(t, c)]` guards call c of layer t."""
+
+    name: str
+    skeleton: Skeleton
+    checks: dict[tuple[int, int], Check]
+    culprit_candidates: tuple[str, ...] = ()
+    calls: int = field(default=0)
+
+    def initial_state(self) -> object:
+        return None
+
+    def transition(
+        self, index: int, bindings: Mapping[str, Value], state: object
+    ) -> TransitionOutcome:
+        self.calls += 1
+        results: list[CheckResult] = []
+        for position, call in enumerate(self.skeleton.transitions[index].calls):
+            check = self.checks.get((index, position))
+            culprits = check(bindings) if check is not None else None
+            if culprits is None:
+                results.append(CheckResult(call, True))
+                continue
+            reason = "collision" if culprits else "unreachable"
+            named = tuple(Culprit(body, 0.01 / (rank + 1)) for rank, body in enumerate(culprits))
+            results.append(CheckResult(call, False, reason, named))
+            break
+        return TransitionOutcome(tuple(results), state=None)
+
+
+def _shelf(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
+    """Reachable shelf placements: a disc of radius 0.1 in (x, y) (~3% of the square)."""
+    x, y, _ = bindings["#pose12"]
+    return None if (x - 0.85) ** 2 + (y - 0.2) ** 2 < 0.1**2 else ("shelf",)
+
+
+def _grasp_blocked(blocked: dict[str, tuple[str, ...]]) -> Check:
+    def check(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
+        return blocked.get(str(bindings["#dir1"]))
+
+    return check
+
+
+def analytic_world(task: str) -> AnalyticWorld:
+    """`desk` or `deskP`: both place `body` on the shelf region `region2`."""
+    candidates = ("obstacle1", "obstacle2", "shelf")
+    if task == "desk":
+        checks = {
+            (0, 0): _grasp_blocked({"right": ("obstacle2",), "back": ()}),
+            (0, 1): _grasp_blocked({"left": ("obstacle1",)}),
+            (1, 0): _shelf,
+        }
+        return AnalyticWorld("desk", pick_place_skeleton("pose0", "region2"), checks, candidates)
+    if task == "deskP":
+        checks = {(0, 0): _grasp_blocked({"back": ()}), (1, 0): _shelf}
+        return AnalyticWorld("deskP", pick_place_skeleton("poseP", "region2"), checks, candidates)
+    raise ValueError(f"unknown analytic task {task!r}: desk or deskP")

@@ -1,0 +1,184 @@
+"""PW-UCT binding search (Algorithm 1 of the paper) over any `BindingWorld`.
+
+Each rollout descends from the root: at a decision node it adds a visit, then either opens a
+new child (the sampler proposes a value and the world runs the following transition layer) or
+selects an open child by UCB. A rollout ends at a failed transition (reward `0.1 d/D`) or at a
+full binding list that passed every transition (reward `1.1`); the reward is backed up by max.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from client.models import Value
+from planner.search.samplers.base import SampleContext, Sampler
+from planner.search.tree import (
+    PW_K,
+    UCB_C,
+    ChildNode,
+    DecisionNode,
+    backup,
+    check_alternating,
+    reward,
+    ucb_select,
+    widens,
+)
+from planner.world import BindingWorld, TransitionOutcome
+
+
+class SearchObserver(Protocol):
+    """Sees every transition the search runs (the knowledge base labels points from them)."""
+
+    def on_transition(
+        self, index: int, bindings: dict[str, Value], outcome: TransitionOutcome, rollout: int
+    ) -> None: ...
+
+    def on_rollout_end(self, rollout: int) -> None: ...
+
+
+@dataclass(frozen=True)
+class SearchProgress:
+    rollouts: int
+    best_depth: float
+    solved: bool
+
+
+@dataclass
+class SearchResult:
+    solved: bool
+    rollouts: int
+    rollouts_spent: int
+    bindings: dict[str, Value] | None
+    best_depth: float
+    sim_s: float
+    sample_s: float
+    exhausted: bool = False
+    solutions: list[dict[str, Value]] = field(default_factory=list)
+
+
+class PWUCT:
+    def __init__(
+        self,
+        world: BindingWorld,
+        sampler: Sampler,
+        *,
+        seed: int,
+        k: float = PW_K,
+        c: float = UCB_C,
+        observer: SearchObserver | None = None,
+    ) -> None:
+        check_alternating(world.skeleton)
+        self.world = world
+        self.sampler = sampler
+        self.k = k
+        self.c = c
+        self.observer = observer
+        self.rng = np.random.default_rng(seed)
+        self.decisions = world.skeleton.decisions
+        self.n_layers = len(world.skeleton.layers)
+        self.root = DecisionNode(0, self.decisions[0], {}, world.initial_state())
+        self.rollout = 0
+        self.best_depth = 0.0
+        self.sim_s = 0.0
+        self.sample_s = 0.0
+
+    def run(
+        self,
+        max_rollouts: int = 2000,
+        *,
+        stop_at_first: bool = True,
+        progress: Callable[[SearchProgress], None] | None = None,
+    ) -> SearchResult:
+        """Rollouts until the first feasible binding list (or the whole budget)."""
+        first: int | None = None
+        solutions: list[dict[str, Value]] = []
+        while self.rollout < max_rollouts and not (self.root.dead or self.root.finished):
+            found = self._rollout()
+            if found is None:
+                continue
+            self.rollout += 1
+            if self.observer is not None:
+                self.observer.on_rollout_end(self.rollout)
+            if found:
+                solutions.append(found)
+                first = first or self.rollout
+            if progress is not None:
+                progress(SearchProgress(self.rollout, self.best_depth, first is not None))
+            if first is not None and stop_at_first:
+                break
+        return SearchResult(
+            solved=first is not None,
+            rollouts=first if first is not None else self.rollout,
+            rollouts_spent=self.rollout,
+            bindings=solutions[0] if solutions else None,
+            best_depth=self.best_depth,
+            sim_s=self.sim_s,
+            sample_s=self.sample_s,
+            exhausted=self.root.dead or self.root.finished,
+            solutions=solutions,
+        )
+
+    def _rollout(self) -> dict[str, Value] | None:
+        """One descent; the bindings on success, {} on failure, None if it met only closed
+        nodes (a categorical subtree turned out exhausted: nothing was run, no rollout spent)."""
+        node = self.root
+        while True:
+            node.visits += 1
+            if widens(node, self.k):
+                child = self._expand(node)
+            else:
+                selected = ucb_select(node, self.c)
+                if selected is None:
+                    return None
+                child = selected
+            child.visits += 1
+            if child.success or not child.outcome.ok:
+                return self._finish(child)
+            assert child.next is not None
+            node = child.next
+
+    def _finish(self, child: ChildNode) -> dict[str, Value]:
+        node = child.parent
+        layers_passed = self.n_layers if child.success else 2 * node.index + 1
+        r = reward(layers_passed, self.n_layers, child.success)
+        self.best_depth = max(self.best_depth, layers_passed / self.n_layers)
+        backup(child, r)
+        return {**node.path, node.var.var: child.value} if child.success else {}
+
+    def _expand(self, node: DecisionNode) -> ChildNode:
+        ctx = SampleContext(
+            var=node.var,
+            path=dict(node.path),
+            siblings=tuple(c.value for c in node.children),
+            sibling_rewards=tuple(c.reward for c in node.children),
+            sibling_visits=tuple(c.visits for c in node.children),
+            depth=node.index,
+            rollout=self.rollout + 1,
+            rng=self.rng,
+        )
+        started = time.perf_counter()
+        value = self.sampler.propose(ctx)
+        self.sample_s += time.perf_counter() - started
+        if node.n_choices is not None and value in ctx.siblings:
+            raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
+        bindings = {**node.path, node.var.var: value}
+        started = time.perf_counter()
+        outcome = self.world.transition(node.index, bindings, node.state)
+        self.sim_s += time.perf_counter() - started
+        if self.observer is not None:
+            self.observer.on_transition(node.index, bindings, outcome, self.rollout + 1)
+        child = ChildNode(value, node, outcome)
+        node.children.append(child)
+        if outcome.ok:
+            if node.index + 1 < len(self.decisions):
+                child.next = DecisionNode(
+                    node.index + 1, self.decisions[node.index + 1], bindings, outcome.state, child
+                )
+            else:
+                child.success = True
+        return child

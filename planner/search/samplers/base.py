@@ -1,0 +1,41 @@
+"""The one interface every node-expansion sampler implements.
+
+The tree calls `propose` when progressive widening opens a new child at a decision node. The
+context carries what a sampler may use: the variable and its domain, the earlier bindings on
+this path, the values of the existing children with their backed-up rewards, and the run's
+seeded generator. A sampler must not return an existing child's value of a categorical variable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from client.models import Value
+from planner.skeleton import DecisionVar
+
+
+@dataclass(frozen=True)
+class SampleContext:
+    var: DecisionVar
+    path: dict[str, Value]
+    siblings: tuple[Value, ...]
+    sibling_rewards: tuple[float, ...]
+    sibling_visits: tuple[int, ...]
+    depth: int
+    rollout: int
+    rng: np.random.Generator
+
+
+class Sampler(Protocol):
+    name: str
+
+    def propose(self, ctx: SampleContext) -> Value:
+        """A value for `ctx.var`, from its domain; never a sibling of a categorical variable."""
+        ...
+
+    def close(self) -> None:
+        """Release whatever the sampler holds (connections, threads)."""
+        ...

@@ -1,0 +1,125 @@
+"""The PW-UCT decision tree: nodes, the progressive-widening law, UCB selection, backup.
+
+A `DecisionNode` binds one decision variable of the skeleton; each of its children is a
+`ChildNode`: a chosen value plus the outcome of the transition layer that follows it. A child
+whose transition passed owns the next decision node (or is a success at the last layer); a child
+whose transition failed is a dead end. Children that are dead ends or successes are *closed*:
+UCB never selects them again, and a node whose children are all closed widens at once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from client.models import CategoricalDomain, Value
+from planner.skeleton import DecisionVar, Skeleton
+from planner.world import TransitionOutcome
+
+PW_K = 13.5
+UCB_C = 0.1
+
+
+@dataclass(eq=False)
+class ChildNode:
+    value: Value
+    parent: DecisionNode
+    outcome: TransitionOutcome
+    visits: int = 0
+    reward: float = 0.0
+    next: DecisionNode | None = None
+    success: bool = False
+
+    @property
+    def dead(self) -> bool:
+        """A failed transition, or a subtree with nothing left to try."""
+        return not self.outcome.ok or (self.next is not None and self.next.dead)
+
+    @property
+    def closed(self) -> bool:
+        return self.success or self.dead or (self.next is not None and self.next.finished)
+
+
+@dataclass(eq=False)
+class DecisionNode:
+    index: int
+    var: DecisionVar
+    path: dict[str, Value]
+    state: object
+    parent: ChildNode | None = None
+    children: list[ChildNode] = field(default_factory=list)
+    visits: int = 0
+    reward: float = 0.0
+
+    @property
+    def n_choices(self) -> int | None:
+        domain = self.var.domain
+        return len(domain.choices) if isinstance(domain, CategoricalDomain) else None
+
+    @property
+    def exhausted(self) -> bool:
+        """A categorical decision with every choice tried; a continuous one never is."""
+        limit = self.n_choices
+        return limit is not None and len(self.children) >= limit
+
+    @property
+    def dead(self) -> bool:
+        """Exhausted (no choice left) and no child leads anywhere."""
+        return self.exhausted and all(c.dead for c in self.children)
+
+    @property
+    def finished(self) -> bool:
+        """Exhausted and every child closed (some succeeded)."""
+        return self.exhausted and all(c.closed for c in self.children)
+
+
+def widens(node: DecisionNode, k: float = PW_K) -> bool:
+    """The PW law: a new child when N > k |C|^2, or when every child is closed;
+    never beyond a categorical decision's number of choices."""
+    n_children = len(node.children)
+    limit = node.n_choices
+    if limit is not None and n_children >= limit:
+        return False
+    if n_children == 0 or all(c.closed for c in node.children):
+        return True
+    return node.visits > k * n_children**2
+
+
+def ucb_select(node: DecisionNode, c: float = UCB_C) -> ChildNode | None:
+    """The open child maximising `reward + c sqrt(ln N / n)`; None when all are closed.
+    Ties go to the earliest child, so selection is deterministic."""
+    best: ChildNode | None = None
+    best_score = -math.inf
+    log_n = math.log(max(node.visits, 1))
+    for child in node.children:
+        if child.closed:
+            continue
+        score = child.reward + c * math.sqrt(log_n / max(child.visits, 1))
+        if score > best_score:
+            best, best_score = child, score
+    return best
+
+
+def backup(child: ChildNode, reward: float) -> None:
+    """Backup by max: every node on the path keeps the best reward seen below it."""
+    node: ChildNode | None = child
+    while node is not None:
+        node.reward = max(node.reward, reward)
+        parent = node.parent
+        parent.reward = max(parent.reward, reward)
+        node = parent.parent
+
+
+def reward(layers_passed: int, layers_total: int, success: bool) -> float:
+    """The paper's reward `0.1 d_end / d_total + r_end`; `d_end` counts skeleton layers passed."""
+    return 0.1 * layers_passed / layers_total + (1.0 if success else 0.0)
+
+
+def check_alternating(skeleton: Skeleton) -> None:
+    """The tree needs decision, transition, decision, transition, ... (Table I)."""
+    kinds = [layer.kind for layer in skeleton.layers]
+    expected = ["decision", "transition"] * (len(kinds) // 2)
+    if not kinds or kinds != expected:
+        raise ValueError(f"skeleton layers must alternate decision/transition, got {kinds}")
+    if any(layer.decision is None for layer in skeleton.layers if layer.kind == "decision"):
+        raise ValueError("every decision layer needs its DecisionVar")

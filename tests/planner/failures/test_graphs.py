@@ -1,0 +1,137 @@
+"""Causal graphs of failed transitions: vertexes, task-independent labels, stable identity."""
+
+from __future__ import annotations
+
+from client.models import ContinuousDomain
+from planner.failures import failure_graph
+from planner.search.analytic import GRASP_DOMAIN, analytic_world, pick_place_skeleton
+from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
+from planner.world import CheckResult, Culprit
+
+POSE = ContinuousDomain(low=[0.0] * 3, high=[1.0] * 3)
+
+
+def roles(graph) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for n in graph.nodes:
+        out.setdefault(n.role, set()).add(n.label)
+    return out
+
+
+def blocked_grasp(task: str):
+    world = analytic_world(task)
+    outcome = world.transition(0, {"#dir1": "right"}, None)
+    assert outcome.failed is not None
+    return failure_graph(world.skeleton, 0, outcome.failed)
+
+
+def test_a_blocked_grasp_has_failure_decision_and_obstacle_vertexes():
+    fg = blocked_grasp("desk")
+    assert roles(fg.graph) == {
+        "failure": {"Inv-kin"},
+        "decision": {"#dir"},
+        "context": {"body", "pose0", "obstacle2"},
+    }
+    edges = {(e.source, e.target, e.label) for e in fg.graph.edges}
+    assert ("c:obstacle2", "failure", "collides") in edges
+    assert ("d:#dir", "failure", "arg2") in edges
+    decision = next(n for n in fg.graph.nodes if n.role == "decision")
+    assert decision.domain == GRASP_DOMAIN
+    assert fg.bind == {"#dir": "#dir1"} and fg.check == (0, 0)
+    assert fg.x({"#dir1": "right"}) == {"#dir": "right"}
+
+
+def test_the_graph_is_the_same_on_every_run():
+    assert blocked_grasp("desk").graph == blocked_grasp("desk").graph
+
+
+def test_a_shelf_failure_gives_the_same_graph_in_deskP_and_desk():
+    graphs = []
+    for task in ("deskP", "desk"):
+        world = analytic_world(task)
+        outcome = world.transition(1, {"#dir1": "front", "#pose12": [0.1, 0.9, 0.5]}, None)
+        graphs.append(failure_graph(world.skeleton, 1, outcome.failed))
+    assert graphs[0].graph == graphs[1].graph
+    assert roles(graphs[0].graph)["decision"] == {"#dir", "#pose"}
+    assert "region2" in roles(graphs[0].graph)["context"]
+
+
+def test_a_motion_failure_backtracks_through_the_configurations():
+    skeleton = pick_place_skeleton("pose0", "region2")
+    call = skeleton.transitions[1].calls[1]  # Plan-motion(#config1, #config2)
+    fg = failure_graph(skeleton, 1, CheckResult(call, False, culprits=(Culprit("shelf", 0.01),)))
+    assert roles(fg.graph)["connection"] == {"Inv-kin"}
+    assert len([n for n in fg.graph.nodes if n.role == "connection"]) == 2
+    assert fg.bind == {"#dir": "#dir1", "#pose": "#pose12"}
+
+
+def regrasp_skeleton() -> Skeleton:
+    def grasp(out: str) -> Layer:
+        call = OperatorCall("Sample-grasp", ("body",), (out,))
+        return Layer("decision", (call,), DecisionVar(out, "#dir", GRASP_DOMAIN, call))
+
+    def pose(out: str, region: str) -> Layer:
+        call = OperatorCall("Sample-pose", ("body", region), (out,))
+        return Layer("decision", (call,), DecisionVar(out, "#pose", POSE, call))
+
+    def move(pose_arg: str, dir_arg: str, c0: str, c1: str, op: str) -> Layer:
+        return Layer(
+            "transition",
+            (
+                OperatorCall("Inv-kin", ("body", pose_arg, dir_arg), (c1,)),
+                OperatorCall("Plan-motion", (c0, c1), (f"#traj-{c1}",)),
+                OperatorCall(op, ("body", f"#traj-{c1}")),
+            ),
+        )
+
+    return Skeleton(
+        (
+            grasp("#dir1"),
+            move("pose0", "#dir1", "config0", "#config1", "Move-Pick"),
+            pose("#pose13", "region3"),
+            move("#pose13", "#dir1", "#config1", "#config2", "Move-Place"),
+            grasp("#dir2"),
+            move("#pose13", "#dir2", "#config2", "#config3", "Move-Pick"),
+            pose("#pose12", "region2"),
+            move("#pose12", "#dir2", "#config3", "#config4", "Move-Place"),
+        )
+    )
+
+
+def test_regrasp_keeps_its_two_grasps_apart_and_binds_them_to_this_task():
+    skeleton = regrasp_skeleton()
+    # Plan-motion(#config2, #config3) at the regrasp: #config2 from the first grasp, #config3
+    # from the second, both at #pose13.
+    call = skeleton.transitions[2].calls[1]
+    fg = failure_graph(skeleton, 2, CheckResult(call, False))
+    labels = sorted(n.label for n in fg.graph.nodes if n.role == "decision")
+    assert labels == ["#dir", "#dir-1", "#pose"]
+    assert fg.bind == {"#dir": "#dir2", "#dir-1": "#dir1", "#pose": "#pose13"}
+
+
+def test_the_last_grasp_of_regrasp_looks_like_the_first_grasp_of_desk():
+    skeleton = regrasp_skeleton()
+    final_ik = skeleton.transitions[3].calls[0]  # Inv-kin(body, #pose12, #dir2)
+    regrasp = failure_graph(
+        skeleton, 3, CheckResult(final_ik, False, culprits=(Culprit("shelf", 0.01),))
+    )
+    desk_skeleton = pick_place_skeleton("pose0", "region2")
+    desk = failure_graph(
+        desk_skeleton,
+        1,
+        CheckResult(
+            desk_skeleton.transitions[1].calls[0], False, culprits=(Culprit("shelf", 0.01),)
+        ),
+    )
+    assert regrasp.graph == desk.graph
+    assert regrasp.bind == {"#pose": "#pose12", "#dir": "#dir2"}
+
+
+def test_a_culprit_placed_by_an_earlier_decision_links_to_that_decision():
+    skeleton = regrasp_skeleton()
+    # Pretend the body placed at #pose13 is what the second pick collides with.
+    call = skeleton.transitions[2].calls[0]
+    fg = failure_graph(skeleton, 2, CheckResult(call, False, culprits=(Culprit("body", 0.02),)))
+    edges = {(e.source, e.target, e.label) for e in fg.graph.edges}
+    assert ("d:#pose", "c:body", "at") in edges
+    assert fg.bind["#pose"] == "#pose13"

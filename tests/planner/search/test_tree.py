@@ -1,0 +1,142 @@
+"""The PW law, UCB, backup and reward on small hand-built trees and an analytic world."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from client.models import CategoricalDomain, ContinuousDomain
+from planner.search import PWUCT
+from planner.search.analytic import analytic_world
+from planner.search.samplers.quasi_random import QuasiRandomSampler
+from planner.search.tree import ChildNode, DecisionNode, backup, reward, ucb_select, widens
+from planner.skeleton import DecisionVar, OperatorCall
+from planner.world import CheckResult, TransitionOutcome
+
+CALL = OperatorCall("Inv-kin", ("body", "pose0", "#x"))
+PASS = TransitionOutcome((CheckResult(CALL, True),))
+FAIL = TransitionOutcome((CheckResult(CALL, False),))
+
+
+def node(domain=None) -> DecisionNode:
+    domain = domain or ContinuousDomain(low=[0.0], high=[1.0])
+    var = DecisionVar("#x", "#x", domain, OperatorCall("Sample", (), ("#x",)))
+    return DecisionNode(0, var, {}, None)
+
+
+def add_child(parent: DecisionNode, value, outcome=PASS, visits=1, r=0.0) -> ChildNode:
+    child = ChildNode(value, parent, outcome, visits=visits, reward=r)
+    if outcome.ok:
+        child.next = DecisionNode(1, parent.var, {}, None, child)
+    parent.children.append(child)
+    return child
+
+
+def test_pw_law_opens_a_child_when_visits_exceed_k_children_squared():
+    n = node()
+    n.visits = 1
+    assert widens(n)
+    add_child(n, [0.1])
+    n.visits = 13
+    assert not widens(n)
+    n.visits = 14
+    assert widens(n)
+    add_child(n, [0.2])
+    n.visits = 54
+    assert not widens(n)
+    n.visits = 55
+    assert widens(n)
+    assert not widens(n, k=20.0)
+
+
+def test_pw_widens_at_once_when_every_child_is_a_dead_end():
+    n = node()
+    add_child(n, [0.1], FAIL)
+    add_child(n, [0.2], FAIL)
+    n.visits = 3
+    assert widens(n)
+    assert ucb_select(n) is None
+
+
+def test_a_categorical_decision_stops_at_its_number_of_choices():
+    n = node(CategoricalDomain(choices=["a", "b"]))
+    add_child(n, "a", FAIL)
+    add_child(n, "b", FAIL)
+    n.visits = 1000
+    assert not widens(n)
+    assert n.exhausted and n.dead
+
+
+def test_ucb_trades_reward_against_visits():
+    n = node()
+    well_known = add_child(n, [0.1], visits=10, r=0.05)
+    fresh = add_child(n, [0.2], visits=1, r=0.0)
+    n.visits = 11
+    # 0.05 + 0.1 sqrt(ln 11 / 10) = 0.099 < 0 + 0.1 sqrt(ln 11) = 0.155
+    assert ucb_select(n) is fresh
+    fresh.visits = 10
+    assert ucb_select(n) is well_known
+    assert math.isclose(0.1 * math.sqrt(math.log(11) / 10), 0.04897, abs_tol=1e-4)
+
+
+def test_ucb_skips_closed_children():
+    n = node()
+    add_child(n, [0.1], FAIL, visits=1, r=0.9)
+    open_child = add_child(n, [0.2], visits=5, r=0.0)
+    n.visits = 6
+    assert ucb_select(n) is open_child
+
+
+def test_backup_keeps_the_max_on_the_whole_path():
+    root = node()
+    first = add_child(root, [0.1])
+    assert first.next is not None
+    leaf = add_child(first.next, [0.5], FAIL)
+    backup(leaf, 0.075)
+    backup(leaf, 0.025)
+    assert (leaf.reward, first.next.reward, first.reward, root.reward) == (0.075,) * 4
+
+
+@pytest.mark.parametrize(
+    ("passed", "total", "success", "expected"),
+    [(1, 4, False, 0.025), (3, 4, False, 0.075), (4, 4, True, 1.1), (5, 8, False, 0.0625)],
+)
+def test_reward_is_a_tenth_of_the_depth_plus_one_on_success(passed, total, success, expected):
+    assert reward(passed, total, success) == pytest.approx(expected)
+
+
+def test_search_finds_a_feasible_binding_and_counts_rollouts():
+    world = analytic_world("desk")
+    result = PWUCT(world, QuasiRandomSampler(), seed=3).run(2000)
+    assert result.solved and result.bindings is not None
+    x, y, _ = result.bindings["#pose12"]
+    assert (x - 0.85) ** 2 + (y - 0.2) ** 2 < 0.01
+    assert result.bindings["#dir1"] in ("front", "top")
+    assert result.rollouts == result.rollouts_spent >= 1
+    assert world.calls >= result.rollouts
+    assert result.best_depth == 1.0
+
+
+def test_search_is_reproducible_for_a_seed_and_varies_across_seeds():
+    runs = [PWUCT(analytic_world("desk"), QuasiRandomSampler(), seed=s).run(500) for s in (1, 1, 2)]
+    assert runs[0].bindings == runs[1].bindings and runs[0].rollouts == runs[1].rollouts
+    assert runs[0].bindings != runs[2].bindings
+
+
+def test_search_rewards_failures_by_depth():
+    search = PWUCT(analytic_world("desk"), QuasiRandomSampler(), seed=0)
+    search.run(5, stop_at_first=False)
+    for child in search.root.children:
+        if not child.outcome.ok:
+            assert child.reward == pytest.approx(0.025)
+        elif child.next is not None and child.next.children and not child.success:
+            assert child.reward >= 0.075
+
+
+def test_budget_without_stopping_keeps_searching_after_the_first_solution():
+    result = PWUCT(analytic_world("desk"), QuasiRandomSampler(), seed=3).run(
+        300, stop_at_first=False
+    )
+    assert result.solved and result.rollouts_spent == 300
+    assert result.rollouts < 300 and len(result.solutions) >= 1
