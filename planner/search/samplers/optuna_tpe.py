@@ -14,30 +14,23 @@ Nothing is kept between runs and the knowledge base is never used.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
 
 import optuna
 from optuna.distributions import BaseDistribution, CategoricalDistribution, FloatDistribution
-from optuna.trial import FrozenTrial, Trial, TrialState
+from optuna.trial import Trial, TrialState
 
 from client.models import CategoricalDomain, ContinuousDomain, Value
 from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import untried_choice
 
-N_STARTUP_TRIALS = 5
-"""Random trials before TPE models (Optuna's default is 10; a decision sees few children)."""
+N_STARTUP_TRIALS = 10
+"""Random trials before TPE models a variable (Optuna's default)."""
 
 MAX_CATEGORICAL_ASKS = 8
 """Asks for an untried choice before falling back to a uniform untried one."""
 
-CONSTRAINT_ATTR = "transition_constraint"
-
-
-def _constraint(trial: FrozenTrial) -> Sequence[float]:
-    """Optuna's convention: <= 0 is feasible (the child's transition passed)."""
-    return (trial.user_attrs[CONSTRAINT_ATTR],)
-
+CONSTRAINT = "transition"
 
 def _distributions(domain: CategoricalDomain | ContinuousDomain) -> dict[str, BaseDistribution]:
     if isinstance(domain, CategoricalDomain):
@@ -79,7 +72,6 @@ class OptunaTpeSampler:
                     n_startup_trials=N_STARTUP_TRIALS,
                     multivariate=True,
                     constant_liar=False,
-                    constraints_func=_constraint,
                 )
             self._studies[var] = optuna.create_study(direction="maximize", sampler=sampler)
             self._pending[var] = {}
@@ -91,7 +83,8 @@ class OptunaTpeSampler:
         for value, reward in zip(ctx.siblings, ctx.sibling_rewards, strict=True):
             trial = pending.pop(_key(ctx.path, value), None)
             if trial is not None:
-                trial.set_user_attr(CONSTRAINT_ATTR, threshold - reward)
+                # Optuna's convention: a constraint <= 0 is feasible (the transition passed).
+                trial.set_constraint(CONSTRAINT, threshold - reward)
                 study.tell(trial, reward)
 
     def propose(self, ctx: SampleContext) -> Value:

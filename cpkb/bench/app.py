@@ -1,0 +1,146 @@
+"""`cpkb bench` end to end: check the request, bring up the knowledge base, run, summarise."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import tempfile
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from cpkb.bench.kbs import ServiceKbs
+from cpkb.bench.plots import write_plots
+from cpkb.bench.progress import RichProgress
+from cpkb.bench.results import ResultStore
+from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
+from cpkb.bench.scenarios import PREDECESSORS, TRANSFER_METHOD, expand
+from cpkb.bench.stats import HEADERS, summarize, table_rows, write_summary
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    tasks: Sequence[str]
+    methods: Sequence[str]
+    seeds: Sequence[int]
+    workers: int
+    out_dir: str | Path
+    kb_url: str | None = None
+    token: str | None = None
+    max_rollouts: int = 2000
+    predecessor_rollouts: int = 30
+    time_limit_s: float | None = None
+    summary_only: bool = False
+    quiet: bool = False
+
+
+def plan_run(task: str, method: str, seed: int, **kwargs: object) -> object:
+    """The real planner run (the bench's default run function), with every sampler registered."""
+    import planner.search.samplers.optuna_tpe  # noqa: F401 - registers `optuna-tpe`
+    from planner.run import run_plan
+
+    return run_plan(task, method, seed, **kwargs)
+
+
+def known_methods() -> set[str]:
+    import planner.search.samplers.optuna_tpe  # noqa: F401
+
+    import planner.search.samplers as samplers
+
+    return set(samplers.methods()) | {TRANSFER_METHOD}
+
+
+def known_tasks() -> set[str]:
+    from planner.tasks import task_names
+
+    return set(task_names())
+
+
+def check_request(settings: BenchSettings) -> None:
+    """Name the unknown task or method before any worker starts."""
+    methods, tasks = known_methods(), known_tasks()
+    unknown_m = [m for m in settings.methods if m not in methods]
+    if unknown_m:
+        raise ValueError(f"unknown method {unknown_m[0]!r} (known: {', '.join(sorted(methods))})")
+    needed = set(settings.tasks)
+    if TRANSFER_METHOD in settings.methods:
+        needed |= {p for t in settings.tasks for p in PREDECESSORS.get(t, ())}
+    unknown_t = sorted(needed - tasks)
+    if unknown_t:
+        raise ValueError(f"unknown task {unknown_t[0]!r} (known: {', '.join(sorted(tasks))})")
+
+
+@contextlib.contextmanager
+def knowledge_service(kb_url: str | None, token: str | None) -> Iterator[ServiceKbs]:
+    """The shared service if given; else one embedded service on a temporary SQLite file for
+    the whole bench (each scenario still gets its own knowledge base, deleted after it)."""
+    if kb_url is not None:
+        yield ServiceKbs(kb_url, token)
+        return
+    from cpkb.embedded import embedded_service
+
+    with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp:
+        db_url = f"sqlite:///{Path(tmp) / 'bench.db'}"
+        with embedded_service(db_url) as url:
+            yield ServiceKbs(url)
+
+
+def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> None:
+    """Rebuild the summary table and plots from everything in `out_dir`."""
+    records = ResultStore(out_dir).records()
+    rows = summarize(records, settings.tasks, settings.methods)
+    paths = write_summary(rows, out_dir)
+    paths += write_plots(records, out_dir, settings.tasks, settings.methods)
+    table = Table(*HEADERS, title=f"cpkb bench: {len(records)} runs in {out_dir}")
+    for cells in table_rows(rows):
+        table.add_row(*cells)
+    console.print(table)
+    console.print("wrote " + ", ".join(str(p) for p in paths))
+
+
+def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
+    scenarios = expand(settings.tasks, settings.methods, settings.seeds)
+    with knowledge_service(settings.kb_url, settings.token) as kbs:
+        return run_bench(
+            scenarios,
+            settings.out_dir,
+            run_fn,
+            workers=settings.workers,
+            max_rollouts=settings.max_rollouts,
+            predecessor_rollouts=settings.predecessor_rollouts,
+            predecessor_kwargs={"stop_at_first": False},
+            kb_service=kbs,
+            time_limit_s=settings.time_limit_s,
+            progress=None if settings.quiet else RichProgress(console),
+        )
+
+
+def run_command(settings: BenchSettings, run_fn: RunFn | None = None) -> int:
+    """The CLI's body; exit status 0 when every asked run has a result, 1 otherwise."""
+    console = Console(stderr=False)
+    if settings.summary_only:
+        report(settings.out_dir, settings, console)
+        return 0
+    check_request(settings)
+    if run_fn is None:
+        run_fn = (
+            plan_run
+            if settings.token is None
+            else functools.partial(plan_run, token=settings.token)
+        )
+    outcome = execute_bench(settings, run_fn, console)
+    console.print(
+        f"{outcome.finished} runs finished, {outcome.skipped} already done, "
+        f"{outcome.errors} failed, {outcome.remaining} left"
+        + (" (time limit reached: rerun the same command to continue)" if outcome.timed_out else "")
+        + (" (interrupted: rerun the same command to continue)" if outcome.interrupted else "")
+    )
+    for message in outcome.error_messages[:5]:
+        console.print(f"[red]error[/red] {message}")
+    if outcome.errors:
+        console.print(f"tracebacks in {ResultStore(settings.out_dir).errors_path}")
+    report(settings.out_dir, settings, console)
+    return 0 if outcome.errors == 0 and outcome.remaining == 0 else 1

@@ -1,0 +1,91 @@
+"""Box plots in the manner of the paper's Fig. 5: one panel per task, one box per method."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")  # headless: benches run on servers and in CI
+
+import matplotlib.pyplot as plt
+
+from cpkb.bench.stats import ordered
+
+
+def box_plot(
+    records: Iterable[Mapping[str, Any]],
+    field: str,
+    path: Path | str,
+    *,
+    ylabel: str,
+    title: str,
+    tasks: Sequence[str] = (),
+    methods: Sequence[str] = (),
+    log: bool = True,
+) -> Path:
+    """Write a PNG of `field` per method, one panel per task; the mean is marked with a dot."""
+    data: dict[str, dict[str, list[float]]] = {}
+    for r in records:
+        data.setdefault(r["task"], {}).setdefault(r["method"], []).append(float(r[field]))
+    task_order = ordered(data, tasks) or ["(no runs)"]
+    fig, axes = plt.subplots(
+        1, len(task_order), figsize=(4.2 * len(task_order), 4.2), squeeze=False
+    )
+    for ax, task in zip(axes[0], task_order, strict=True):
+        cell = data.get(task, {})
+        names = ordered(cell, methods)
+        if names:
+            ax.boxplot(
+                [cell[m] for m in names],
+                showmeans=True,
+                meanprops={"marker": "o", "markerfacecolor": "white", "markeredgecolor": "black"},
+            )
+            ax.set_xticks(range(1, len(names) + 1))
+            ax.set_xticklabels(
+                [f"{m}\n(n={len(cell[m])})" for m in names], rotation=30, ha="right", fontsize=8
+            )
+        if log:
+            ax.set_yscale("log")
+        ax.set_title(task)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].set_ylabel(ylabel)
+    fig.suptitle(title)
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def write_plots(
+    records: Sequence[Mapping[str, Any]],
+    out_dir: Path | str,
+    tasks: Sequence[str] = (),
+    methods: Sequence[str] = (),
+) -> list[Path]:
+    """`rollouts.png` (the paper's metric) and `wall_time.png` (time to the first binding)."""
+    out = Path(out_dir)
+    return [
+        box_plot(
+            records,
+            "rollouts",
+            out / "rollouts.png",
+            ylabel="rollouts to the first feasible binding (log)",
+            title="Rollouts per method (box: quartiles, o: mean)",
+            tasks=tasks,
+            methods=methods,
+        ),
+        box_plot(
+            records,
+            "wall_s",
+            out / "wall_time.png",
+            ylabel="wall time to the first feasible binding, s (log)",
+            title="Wall time per method (target task only)",
+            tasks=tasks,
+            methods=methods,
+        ),
+    ]

@@ -1,0 +1,108 @@
+"""The bench's output directory: an append-only JSONL of finished runs, resumable.
+
+`runs.jsonl` gets one line per finished run, flushed and fsynced as it lands, so a bench
+killed at any moment keeps every run it finished and a rerun skips them. Runs that raised
+go to `errors.jsonl` and are retried by a rerun. `bench.json` pins the settings that make
+results comparable (the rollout caps); a rerun with other caps is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from cpkb.bench.scenarios import Scenario
+
+RUNS_FILE = "runs.jsonl"
+ERRORS_FILE = "errors.jsonl"
+CONFIG_FILE = "bench.json"
+
+
+class BenchConfigError(ValueError):
+    """The output directory holds results made with other settings."""
+
+
+def _read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
+    if not path.exists():
+        return
+    with path.open(encoding="utf-8") as handle:
+        for line in handle:
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                record = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a line cut short by a kill mid-write: that run is simply redone
+            if isinstance(record, dict):
+                yield record
+
+
+class ResultStore:
+    """Reads and appends the results of one output directory (only the parent process writes)."""
+
+    def __init__(self, out_dir: Path | str) -> None:
+        self.out_dir = Path(out_dir)
+        self.runs_path = self.out_dir / RUNS_FILE
+        self.errors_path = self.out_dir / ERRORS_FILE
+        self.config_path = self.out_dir / CONFIG_FILE
+
+    def pin_config(self, config: Mapping[str, Any]) -> None:
+        """Write the settings on first use; refuse a rerun whose settings differ."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        if self.config_path.exists():
+            stored = json.loads(self.config_path.read_text(encoding="utf-8"))
+            changed = {k: (stored.get(k), v) for k, v in config.items() if stored.get(k) != v}
+            if changed:
+                diff = ", ".join(
+                    f"{k}: {old} here, {new} asked" for k, (old, new) in changed.items()
+                )
+                raise BenchConfigError(
+                    f"{self.out_dir} holds results made with other settings ({diff}); "
+                    "use another --out directory"
+                )
+            return
+        self.config_path.write_text(json.dumps(dict(config), indent=2) + "\n", encoding="utf-8")
+
+    def records(self) -> list[dict[str, Any]]:
+        """Finished runs, one per scenario (the first line wins if a key repeats)."""
+        seen: dict[tuple[str, str, int], dict[str, Any]] = {}
+        for record in _read_jsonl(self.runs_path):
+            try:
+                key = (str(record["task"]), str(record["method"]), int(record["seed"]))
+            except (KeyError, TypeError, ValueError):
+                continue
+            seen.setdefault(key, record)
+        return list(seen.values())
+
+    def errors(self) -> list[dict[str, Any]]:
+        return list(_read_jsonl(self.errors_path))
+
+    def finished(self) -> set[tuple[str, str, int]]:
+        return {(r["task"], r["method"], int(r["seed"])) for r in self.records()}
+
+    def pending(self, scenarios: list[Scenario]) -> list[Scenario]:
+        done = self.finished()
+        return [s for s in scenarios if s.key not in done]
+
+    def append_run(self, record: Mapping[str, Any]) -> None:
+        self._append(self.runs_path, record)
+
+    def append_error(self, record: Mapping[str, Any]) -> None:
+        self._append(self.errors_path, record)
+
+    def _append(self, path: Path, record: Mapping[str, Any]) -> None:
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        line = json.dumps(dict(record), sort_keys=True, default=str) + "\n"
+        if path.exists() and path.stat().st_size > 0:
+            with path.open("rb") as tail:
+                tail.seek(-1, os.SEEK_END)
+                if tail.read(1) != b"\n":
+                    line = "\n" + line  # end a line cut short by a kill before adding ours
+        with path.open("a", encoding="utf-8") as handle:
+            handle.write(line)
+            handle.flush()
+            os.fsync(handle.fileno())

@@ -1,0 +1,177 @@
+"""The summary table: per (task, method) cell, rollouts and wall time against quasi-random.
+
+Unsolved runs count with the rollouts they spent (the cap), as in the paper's Fig. 5, so a
+cell's mean is a lower bound when its solved rate is below 1.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.stats import mannwhitneyu
+
+from cpkb.bench.scenarios import BASELINE_METHOD, PAPER_REDUCTION_PERCENT, TRANSFER_METHOD
+
+
+@dataclass(frozen=True)
+class CellSummary:
+    """One row of the table. Reductions are percent of the baseline's mean (positive = fewer)."""
+
+    task: str
+    method: str
+    n: int
+    solved_rate: float
+    rollouts_mean: float
+    rollouts_sd: float
+    rollouts_median: float
+    reduction_pct: float | None
+    p_value: float | None
+    wall_mean_s: float
+    wall_median_s: float
+    wall_reduction_pct: float | None
+    wall_p_value: float | None
+    paper_reduction_pct: float | None
+
+
+def ordered(values: Iterable[str], preferred: Sequence[str]) -> list[str]:
+    present = set(values)
+    return [v for v in preferred if v in present] + sorted(present - set(preferred))
+
+
+def _p_value(sample: np.ndarray, baseline: np.ndarray) -> float | None:
+    """Two-sided Mann-Whitney U; None when either side is empty or all values tie."""
+    if len(sample) == 0 or len(baseline) == 0:
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        p = float(mannwhitneyu(sample, baseline, alternative="two-sided").pvalue)
+    return None if math.isnan(p) else p
+
+
+def _reduction(mean: float, baseline_mean: float | None) -> float | None:
+    if baseline_mean is None or baseline_mean <= 0:
+        return None
+    return 100.0 * (baseline_mean - mean) / baseline_mean
+
+
+def summarize(
+    records: Iterable[Mapping[str, Any]],
+    tasks: Sequence[str] = (),
+    methods: Sequence[str] = (),
+) -> list[CellSummary]:
+    """One row per (task, method) present in `records`, in the given order first."""
+    cells: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for r in records:
+        cells.setdefault((r["task"], r["method"]), []).append(r)
+    rows = []
+    for task in ordered((t for t, _ in cells), tasks):
+        base = cells.get((task, BASELINE_METHOD), [])
+        base_roll = np.array([float(r["rollouts"]) for r in base])
+        base_wall = np.array([float(r["wall_s"]) for r in base])
+        task_methods = (m for t, m in cells if t == task)
+        for method in ordered(task_methods, methods):
+            runs = cells[(task, method)]
+            roll = np.array([float(r["rollouts"]) for r in runs])
+            wall = np.array([float(r["wall_s"]) for r in runs])
+            vs_base = method != BASELINE_METHOD and len(base) > 0
+            rows.append(
+                CellSummary(
+                    task=task,
+                    method=method,
+                    n=len(runs),
+                    solved_rate=float(np.mean([bool(r["solved"]) for r in runs])),
+                    rollouts_mean=float(roll.mean()),
+                    rollouts_sd=float(roll.std(ddof=1)) if len(roll) > 1 else 0.0,
+                    rollouts_median=float(np.median(roll)),
+                    reduction_pct=_reduction(roll.mean(), base_roll.mean()) if vs_base else None,
+                    p_value=_p_value(roll, base_roll) if vs_base else None,
+                    wall_mean_s=float(wall.mean()),
+                    wall_median_s=float(np.median(wall)),
+                    wall_reduction_pct=_reduction(wall.mean(), base_wall.mean())
+                    if vs_base
+                    else None,
+                    wall_p_value=_p_value(wall, base_wall) if vs_base else None,
+                    paper_reduction_pct=PAPER_REDUCTION_PERCENT.get(task)
+                    if method == TRANSFER_METHOD
+                    else None,
+                )
+            )
+    return rows
+
+
+def _fmt(value: float | None, spec: str, suffix: str = "") -> str:
+    return "-" if value is None else f"{value:{spec}}{suffix}"
+
+
+def _fmt_p(p: float | None) -> str:
+    if p is None:
+        return "-"
+    return f"{p:.1e}" if p < 1e-3 else f"{p:.3f}"
+
+
+HEADERS = (
+    "task",
+    "method",
+    "n",
+    "solved",
+    "rollouts mean ± sd",
+    "median",
+    "reduction vs QR",
+    "paper",
+    "p (MWU)",
+    "wall mean",
+    "wall median",
+    "wall reduction",
+    "wall p",
+)
+
+
+def table_rows(rows: Sequence[CellSummary]) -> list[list[str]]:
+    """The summary as display strings, in `HEADERS` order."""
+    return [
+        [
+            r.task,
+            r.method,
+            str(r.n),
+            f"{100 * r.solved_rate:.0f}%",
+            f"{r.rollouts_mean:.1f} ± {r.rollouts_sd:.1f}",
+            f"{r.rollouts_median:g}",
+            _fmt(r.reduction_pct, ".1f", "%"),
+            _fmt(r.paper_reduction_pct, ".2f", "%"),
+            _fmt_p(r.p_value),
+            f"{r.wall_mean_s:.2f} s",
+            f"{r.wall_median_s:.2f} s",
+            _fmt(r.wall_reduction_pct, ".1f", "%"),
+            _fmt_p(r.wall_p_value),
+        ]
+        for r in rows
+    ]
+
+
+def markdown_table(rows: Sequence[CellSummary]) -> str:
+    lines = ["| " + " | ".join(HEADERS) + " |", "|" + "---|" * len(HEADERS)]
+    lines += ["| " + " | ".join(cells) + " |" for cells in table_rows(rows)]
+    return "\n".join(lines) + "\n"
+
+
+def write_summary(rows: Sequence[CellSummary], out_dir: Path | str) -> list[Path]:
+    """`summary.md` (the table) and `summary.csv` (full precision)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    md = out / "summary.md"
+    md.write_text(markdown_table(rows), encoding="utf-8")
+    path_csv = out / "summary.csv"
+    fields = list(CellSummary.__dataclass_fields__)
+    with path_csv.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        for r in rows:
+            writer.writerow(asdict(r))
+    return [md, path_csv]

@@ -1,0 +1,125 @@
+"""`cpkb bench`: the paper's experiment, tasks x methods x seeds on a pool of workers."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+
+from cpkb.cli import CliError
+
+DEFAULT_TASKS = "desk,regrasp,pack"
+DEFAULT_METHODS = "quasi-random,mcts-bo,cp-bo,cp-bo-transfer,optuna-tpe"
+
+
+def _csv_list(text: str) -> list[str]:
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items:
+        raise argparse.ArgumentTypeError("give at least one name, comma-separated")
+    if len(set(items)) != len(items):
+        raise argparse.ArgumentTypeError(f"a name is repeated in {text!r}")
+    return items
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
+_DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smh]?)\s*$")
+
+
+def parse_duration(text: str) -> float:
+    """Seconds from `90`, `90s`, `30m` or `2h`."""
+    match = _DURATION.match(text)
+    if not match:
+        raise argparse.ArgumentTypeError(f"not a duration (e.g. 600, 30m, 2h): {text!r}")
+    value = float(match.group(1)) * {"": 1, "s": 1, "m": 60, "h": 3600}[match.group(2)]
+    if value <= 0:
+        raise argparse.ArgumentTypeError("a time limit must be above zero")
+    return value
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "bench",
+        help="the paper's evaluation: rollouts to the first feasible binding per method",
+        description=(
+            "Run tasks x methods x seeds, each scenario in a fresh knowledge base, on a pool of "
+            "worker processes. Results are appended run by run to OUT/runs.jsonl; a rerun with "
+            "the same --out skips finished runs. Writes OUT/summary.md, OUT/summary.csv, "
+            "OUT/rollouts.png and OUT/wall_time.png."
+        ),
+    )
+    parser.add_argument("--tasks", type=_csv_list, default=_csv_list(DEFAULT_TASKS))
+    parser.add_argument(
+        "--methods",
+        type=_csv_list,
+        default=_csv_list(DEFAULT_METHODS),
+        help="samplers, plus cp-bo-transfer (cp-bo after the task's predecessors, "
+        f"30 rollouts each, in the same knowledge base); default {DEFAULT_METHODS}",
+    )
+    parser.add_argument("--seeds", type=_positive_int, default=100, help="seeds per cell")
+    parser.add_argument("--first-seed", type=_non_negative_int, default=0)
+    parser.add_argument(
+        "--workers", type=_positive_int, default=os.cpu_count() or 1, help="worker processes"
+    )
+    parser.add_argument("--out", default="bench-out", help="results directory (resumable)")
+    parser.add_argument(
+        "--kb-url",
+        default=None,
+        help="a running cpkb service to share; default: one embedded service for the whole "
+        "bench on a temporary SQLite file (a fresh knowledge base per scenario either way)",
+    )
+    parser.add_argument("--token", default=None, help="bearer token for --kb-url")
+    parser.add_argument("--max-rollouts", type=_positive_int, default=2000)
+    parser.add_argument("--predecessor-rollouts", type=_positive_int, default=30)
+    parser.add_argument(
+        "--time-limit",
+        type=parse_duration,
+        default=None,
+        help="stop after this long (600, 30m, 2h); runs in flight are redone by a rerun",
+    )
+    parser.add_argument(
+        "--summary-only", action="store_true", help="only rebuild the table and plots from OUT"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(handler=handle)
+
+
+def handle(args: argparse.Namespace) -> int:
+    from cpkb.bench.app import BenchSettings, run_command
+
+    settings = BenchSettings(
+        tasks=args.tasks,
+        methods=args.methods,
+        seeds=range(args.first_seed, args.first_seed + args.seeds),
+        workers=args.workers,
+        out_dir=args.out,
+        kb_url=args.kb_url,
+        token=args.token,
+        max_rollouts=args.max_rollouts,
+        predecessor_rollouts=args.predecessor_rollouts,
+        time_limit_s=args.time_limit,
+        summary_only=args.summary_only,
+        quiet=args.quiet,
+    )
+    try:
+        return run_command(settings)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None

@@ -1,0 +1,68 @@
+"""A tiny analytic planner with `run_plan`'s signature, to drive the bench harness in tests.
+
+It binds one variable x in [0, 1] whose feasible set is [0.9, 1]: each rollout draws x
+(uniformly for `quasi-random`; from [0.5, 1] for the other methods, so they need fewer
+rollouts, as a guided sampler would). Every call is logged to `log_path` (one JSON line), so
+tests can see which runs were executed, in which order, with which arguments.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+
+def toy_run(
+    task: str,
+    method: str,
+    seed: int,
+    *,
+    max_rollouts: int,
+    kb_url: str | None,
+    kb: str | None,
+    quiet: bool,
+    log_path: str,
+    sleep_s: float = 0.0,
+    fail_seeds: tuple[int, ...] = (),
+    stop_at_first: bool = True,
+) -> dict[str, object]:
+    started = time.perf_counter()
+    with Path(log_path).open("a", encoding="utf-8") as handle:
+        call = {
+            "task": task,
+            "method": method,
+            "seed": seed,
+            "kb": kb,
+            "kb_url": kb_url,
+            "max_rollouts": max_rollouts,
+            "stop_at_first": stop_at_first,
+            "pid": os.getpid(),
+        }
+        handle.write(json.dumps(call) + "\n")
+    if seed in fail_seeds:
+        raise RuntimeError(f"toy failure on seed {seed}")
+    time.sleep(sleep_s)
+    rng = np.random.default_rng([seed, zlib.crc32(f"{task}/{method}".encode())])
+    low = 0.0 if method == "quasi-random" else 0.5
+    rollouts, solved = 0, False
+    while rollouts < max_rollouts:
+        rollouts += 1
+        if rng.uniform(low, 1.0) >= 0.9:
+            solved = True
+            if stop_at_first:
+                break
+    return {
+        "task": task,
+        "method": method,
+        "seed": seed,
+        "solved": solved,
+        "rollouts": rollouts,
+        "wall_s": time.perf_counter() - started,
+        "sim_s": 0.0,
+        "kb_s": 0.0,
+    }

@@ -1,0 +1,144 @@
+"""The harness: scenario expansion, the worker pool, predecessors, resumability, time limit."""
+
+from __future__ import annotations
+
+import functools
+import json
+from pathlib import Path
+
+import pytest
+from bench_toy_planner import toy_run
+
+from cpkb.bench.results import BenchConfigError, ResultStore
+from cpkb.bench.runner import run_bench
+from cpkb.bench.scenarios import Scenario, expand
+
+
+def _calls(log: Path) -> list[dict]:
+    if not log.exists():
+        return []
+    return [json.loads(line) for line in log.read_text().splitlines()]
+
+
+def test_expand_is_seed_major_and_checks_transfer_tasks() -> None:
+    scenarios = expand(["desk", "pack"], ["quasi-random", "cp-bo-transfer"], range(2))
+    assert scenarios[:4] == [
+        Scenario("desk", "quasi-random", 0),
+        Scenario("desk", "cp-bo-transfer", 0),
+        Scenario("pack", "quasi-random", 0),
+        Scenario("pack", "cp-bo-transfer", 0),
+    ]
+    assert {s.seed for s in scenarios[4:]} == {1}
+    assert Scenario("regrasp", "cp-bo-transfer", 0).predecessors == ("deskP", "desk")
+    assert Scenario("regrasp", "cp-bo-transfer", 0).sampler == "cp-bo"
+    assert Scenario("desk", "cp-bo", 0).predecessors == ()
+    with pytest.raises(ValueError, match="no predecessor tasks for 'deskP'"):
+        expand(["deskP"], ["cp-bo-transfer"], range(1))
+
+
+def test_pool_runs_every_scenario_once_with_predecessors_first(tmp_path: Path) -> None:
+    log = tmp_path / "calls.jsonl"
+    run = functools.partial(toy_run, log_path=str(log))
+    scenarios = expand(["desk", "regrasp"], ["quasi-random", "cp-bo", "cp-bo-transfer"], range(3))
+    outcome = run_bench(
+        scenarios,
+        tmp_path / "out",
+        run,
+        workers=2,
+        max_rollouts=500,
+        predecessor_rollouts=30,
+        predecessor_kwargs={"stop_at_first": False},
+    )
+    assert (outcome.finished, outcome.errors, outcome.remaining) == (18, 0, 0)
+    records = ResultStore(tmp_path / "out").records()
+    assert sorted((r["task"], r["method"], r["seed"]) for r in records) == sorted(
+        s.key for s in scenarios
+    )
+    for r in records:
+        assert r["max_rollouts"] == 500 and 1 <= r["rollouts"] <= 500
+        assert {"wall_s", "sim_s", "kb_s", "solved", "scenario_wall_s"} <= set(r)
+    transfer = [r for r in records if r["method"] == "cp-bo-transfer"]
+    assert all(r["sampler"] == "cp-bo" for r in transfer)
+    assert {
+        tuple(p["task"] for p in r["predecessors"]) for r in transfer if r["task"] == "regrasp"
+    } == {("deskP", "desk")}
+    # The worker ran the predecessors before the target, with the whole 30-rollout budget.
+    calls = _calls(log)
+    by_pid_seed: dict[tuple[int, int], list[dict]] = {}
+    for c in calls:
+        if c["method"] == "cp-bo" and c["max_rollouts"] == 30:
+            assert c["stop_at_first"] is False
+        by_pid_seed.setdefault((c["pid"], c["seed"]), []).append(c)
+    regrasp_target = [
+        c
+        for c in calls
+        if c["task"] == "regrasp" and c["method"] == "cp-bo" and c["max_rollouts"] == 500
+    ]
+    assert len(regrasp_target) == 6  # cp-bo and cp-bo-transfer, three seeds each
+    predecessor_calls = [c for c in calls if c["max_rollouts"] == 30]
+    assert [c["task"] for c in predecessor_calls].count("deskP") == 6
+    assert len({c["pid"] for c in calls}) == 2
+
+
+def test_rerun_skips_finished_runs_and_redoes_a_line_cut_short(tmp_path: Path) -> None:
+    log = tmp_path / "calls.jsonl"
+    run = functools.partial(toy_run, log_path=str(log))
+    out = tmp_path / "out"
+    scenarios = expand(["desk"], ["quasi-random", "cp-bo"], range(4))
+    run_bench(scenarios, out, run, workers=2, max_rollouts=200)
+    assert len(_calls(log)) == 8
+    again = run_bench(scenarios, out, run, workers=2, max_rollouts=200)
+    assert (again.skipped, again.finished) == (8, 0)
+    assert len(_calls(log)) == 8
+    # A kill mid-write leaves half a line: that run is redone, the others are kept.
+    runs = out / "runs.jsonl"
+    lines = runs.read_text().splitlines()
+    runs.write_text("\n".join(lines[:-1]) + "\n" + lines[-1][: len(lines[-1]) // 2])
+    third = run_bench(scenarios, out, run, workers=1, max_rollouts=200)
+    assert (third.skipped, third.finished) == (7, 1)
+    assert len(ResultStore(out).records()) == 8
+    # More seeds later: only the new ones run.
+    more = run_bench(
+        expand(["desk"], ["quasi-random", "cp-bo"], range(5)), out, run, workers=2, max_rollouts=200
+    )
+    assert (more.skipped, more.finished) == (8, 2)
+
+
+def test_rerun_with_another_rollout_cap_is_refused(tmp_path: Path) -> None:
+    run = functools.partial(toy_run, log_path=str(tmp_path / "calls.jsonl"))
+    scenarios = expand(["desk"], ["quasi-random"], range(1))
+    run_bench(scenarios, tmp_path / "out", run, workers=1, max_rollouts=200)
+    with pytest.raises(BenchConfigError, match="max_rollouts: 200 here, 300 asked"):
+        run_bench(scenarios, tmp_path / "out", run, workers=1, max_rollouts=300)
+
+
+def test_time_limit_stops_and_a_rerun_finishes(tmp_path: Path) -> None:
+    log = tmp_path / "calls.jsonl"
+    run = functools.partial(toy_run, log_path=str(log), sleep_s=0.4)
+    out = tmp_path / "out"
+    scenarios = expand(["desk"], ["quasi-random", "cp-bo"], range(6))
+    first = run_bench(scenarios, out, run, workers=1, max_rollouts=100, time_limit_s=2.5)
+    assert first.timed_out
+    assert 1 <= first.finished < 12 and first.remaining == 12 - first.finished
+    assert len(ResultStore(out).records()) == first.finished
+    second = run_bench(scenarios, out, run, workers=2, max_rollouts=100)
+    assert not second.timed_out
+    assert second.finished == 12 - first.finished
+    assert len(ResultStore(out).records()) == 12
+
+
+def test_a_failing_run_is_reported_and_retried(tmp_path: Path) -> None:
+    log = tmp_path / "calls.jsonl"
+    out = tmp_path / "out"
+    scenarios = expand(["desk"], ["quasi-random"], range(3))
+    failing = functools.partial(toy_run, log_path=str(log), fail_seeds=(1,))
+    outcome = run_bench(scenarios, out, failing, workers=2, max_rollouts=100)
+    assert (outcome.finished, outcome.errors) == (2, 1)
+    assert "RuntimeError: toy failure on seed 1" in outcome.error_messages[0]
+    store = ResultStore(out)
+    assert [e["seed"] for e in store.errors()] == [1]
+    assert "Traceback" in store.errors()[0]["traceback"]
+    fixed = run_bench(
+        scenarios, out, functools.partial(toy_run, log_path=str(log)), workers=1, max_rollouts=100
+    )
+    assert (fixed.skipped, fixed.finished) == (2, 1)

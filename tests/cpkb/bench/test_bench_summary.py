@@ -1,0 +1,71 @@
+"""The summary table and the plots, from hand-made result records."""
+
+from __future__ import annotations
+
+import statistics
+from pathlib import Path
+
+import pytest
+from scipy.stats import mannwhitneyu
+
+from cpkb.bench.plots import write_plots
+from cpkb.bench.stats import markdown_table, summarize, write_summary
+
+
+def _records(task: str, method: str, rollouts: list[int], solved_cap: int = 2000) -> list[dict]:
+    return [
+        {
+            "task": task,
+            "method": method,
+            "seed": i,
+            "rollouts": r,
+            "solved": r < solved_cap,
+            "wall_s": r / 100,
+        }
+        for i, r in enumerate(rollouts)
+    ]
+
+
+QR = [10, 20, 30, 40, 2000]
+TRANSFER = [1, 2, 3, 4, 5]
+
+
+def test_cells_give_mean_sd_median_solved_reduction_and_p_value() -> None:
+    records = _records("desk", "quasi-random", QR) + _records("desk", "cp-bo-transfer", TRANSFER)
+    rows = summarize(records, ["desk"], ["quasi-random", "cp-bo-transfer"])
+    assert [(r.task, r.method) for r in rows] == [
+        ("desk", "quasi-random"),
+        ("desk", "cp-bo-transfer"),
+    ]
+    qr, tr = rows
+    assert qr.n == 5 and qr.solved_rate == pytest.approx(0.8)
+    assert qr.rollouts_mean == pytest.approx(420.0) and qr.rollouts_median == 30
+    assert qr.rollouts_sd == pytest.approx(statistics.stdev(QR))
+    assert qr.reduction_pct is None and qr.p_value is None and qr.paper_reduction_pct is None
+    assert tr.reduction_pct == pytest.approx(100 * (420 - 3) / 420)
+    assert tr.wall_reduction_pct == pytest.approx(tr.reduction_pct)
+    assert tr.p_value == pytest.approx(mannwhitneyu(TRANSFER, QR).pvalue)
+    assert tr.paper_reduction_pct == 71.69
+    table = markdown_table(rows)
+    assert "| desk | cp-bo-transfer | 5 | 100% | 3.0 ± 1.6 | 3 | 99.3% | 71.69% |" in table
+
+
+def test_cells_without_a_baseline_have_no_reduction_and_unknown_cells_come_last() -> None:
+    records = _records("pack", "cp-bo", [3, 3, 3]) + _records("desk", "mcts-bo", [5, 6])
+    rows = summarize(records, ["desk"], ["mcts-bo", "cp-bo"])
+    assert [(r.task, r.method) for r in rows] == [("desk", "mcts-bo"), ("pack", "cp-bo")]
+    assert all(r.reduction_pct is None and r.p_value is None for r in rows)
+
+
+def test_writes_table_files_and_png_plots(tmp_path: Path) -> None:
+    records = (
+        _records("desk", "quasi-random", QR)
+        + _records("desk", "cp-bo", [5, 8, 13])
+        + _records("pack", "quasi-random", [30, 50])
+    )
+    rows = summarize(records)
+    paths = write_summary(rows, tmp_path) + write_plots(records, tmp_path, ["desk", "pack"])
+    assert [p.name for p in paths] == ["summary.md", "summary.csv", "rollouts.png", "wall_time.png"]
+    assert (tmp_path / "summary.csv").read_text().startswith("task,method,n,solved_rate,")
+    for png in paths[2:]:
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
