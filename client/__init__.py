@@ -1,0 +1,23 @@
+"""The light client side of cpkb: wire models (`client.models`), `CpkbClient`, its errors."""
+
+from client.client import CpkbClient
+from client.errors import (
+    BadRequest,
+    Conflict,
+    CpkbError,
+    NotFound,
+    ServerError,
+    ServiceUnavailable,
+    Unauthorized,
+)
+
+__all__ = [
+    "BadRequest",
+    "Conflict",
+    "CpkbClient",
+    "CpkbError",
+    "NotFound",
+    "ServerError",
+    "ServiceUnavailable",
+    "Unauthorized",
+]

@@ -1,0 +1,216 @@
+"""A typed synchronous client for the knowledge-base service (wire contract v1).
+
+Every call has a timeout; idempotent calls are retried with exponential backoff and jitter on
+connection errors and 5xx answers. Point posts are made idempotent by a key on every point
+(generated when the caller gives none), so a retry after a lost answer never stores twice.
+4xx answers raise the matching `client.errors` class carrying the server's detail.
+"""
+
+from __future__ import annotations
+
+import random
+import time
+import uuid
+from collections.abc import Iterable, Iterator, Mapping
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import httpx
+from pydantic import BaseModel, TypeAdapter
+
+from client.errors import CpkbError, ServerError, ServiceUnavailable, error_for
+from client.models import (
+    MAX_POINTS_PER_POST,
+    Graph,
+    Health,
+    KnowledgeBase,
+    KnowledgeBaseIn,
+    MatchIn,
+    MatchResult,
+    PointIn,
+    PointOut,
+    PointResult,
+    PointsIn,
+    PointsOut,
+    PointsPage,
+    TypeDetail,
+    TypeSummary,
+)
+
+DEFAULT_URL = "http://127.0.0.1:8000"
+
+
+class CpkbClient:
+    """Talks to one service at `base_url`; use as a context manager or call `close()`."""
+
+    def __init__(
+        self,
+        base_url: str = DEFAULT_URL,
+        *,
+        timeout: float = 30.0,
+        retries: int = 5,
+        backoff: float = 0.2,
+        max_backoff: float = 5.0,
+        token: str | None = None,
+        transport: httpx.BaseTransport | None = None,
+    ) -> None:
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self.base_url = base_url.rstrip("/")
+        self.retries = retries
+        self.backoff = backoff
+        self.max_backoff = max_backoff
+        self._jitter = random.Random()
+        self._http = httpx.Client(
+            base_url=self.base_url, timeout=timeout, headers=headers, transport=transport
+        )
+
+    def close(self) -> None:
+        self._http.close()
+
+    def __enter__(self) -> CpkbClient:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    # -- transport -------------------------------------------------------------------------
+
+    def _pause(self, attempt: int, response: httpx.Response | None = None) -> None:
+        delay = min(self.backoff * 2**attempt, self.max_backoff)
+        if response is not None and response.headers.get("Retry-After", "").isdigit():
+            delay = max(delay, min(float(response.headers["Retry-After"]), self.max_backoff))
+        time.sleep(delay * (0.5 + self._jitter.random()))
+
+    def request(
+        self,
+        method: str,
+        path: str,
+        *,
+        json: Any = None,
+        params: Mapping[str, Any] | None = None,
+        retry: bool = True,
+    ) -> httpx.Response:
+        """One call with retries (when `retry`) on connection errors and 5xx; raises on 4xx."""
+        attempts = 1 + (self.retries if retry else 0)
+        for attempt in range(attempts):
+            last = attempt + 1 == attempts
+            try:
+                response = self._http.request(method, path, json=json, params=params)
+            except httpx.TransportError as exc:
+                if last:
+                    raise ServiceUnavailable(
+                        f"cannot reach the knowledge base at {self.base_url}: "
+                        f"{type(exc).__name__}: {exc}"
+                    ) from exc
+                self._pause(attempt)
+                continue
+            if response.status_code >= 500 and not last:
+                self._pause(attempt, response)
+                continue
+            if response.is_error:
+                raise error_for(response)
+            return response
+        raise ServerError(f"{method} {path}: no answer after {attempts} attempts")
+
+    def _call(self, model: Any, method: str, path: str, **kwargs: Any) -> Any:
+        response = self.request(method, path, **kwargs)
+        return _adapter(model).validate_python(response.json())
+
+    @staticmethod
+    def _body(model: BaseModel) -> Any:
+        return model.model_dump(mode="json", exclude_none=True)
+
+    # -- service and knowledge bases ---------------------------------------------------------
+
+    def health(self) -> Health:
+        return self._call(Health, "GET", "/healthz")
+
+    def create_kb(self, name: str, *, exist_ok: bool = False) -> KnowledgeBase:
+        """Create a knowledge base; with `exist_ok`, an existing one is returned instead."""
+        body = self._body(KnowledgeBaseIn(name=name))
+        try:
+            return self._call(KnowledgeBase, "POST", "/v1/kbs", json=body)
+        except CpkbError as exc:
+            if exist_ok and exc.status == 409:
+                return self.get_kb(name)
+            raise
+
+    def get_kb(self, name: str) -> KnowledgeBase:
+        return self._call(KnowledgeBase, "GET", f"/v1/kbs/{name}")
+
+    def list_kbs(self) -> list[KnowledgeBase]:
+        return self._call(list[KnowledgeBase], "GET", "/v1/kbs")
+
+    def delete_kb(self, name: str) -> None:
+        self.request("DELETE", f"/v1/kbs/{name}")
+
+    # -- points ------------------------------------------------------------------------------
+
+    def post_points(
+        self,
+        kb: str,
+        points: Iterable[PointIn | Mapping[str, Any]],
+        *,
+        batch_size: int = MAX_POINTS_PER_POST,
+    ) -> list[PointResult]:
+        """Post points in batches (at most 1000 per request); one result per point, in order.
+
+        A point without `key` gets a fresh one, so retries of this call never store twice.
+        """
+        if not 1 <= batch_size <= MAX_POINTS_PER_POST:
+            raise ValueError(f"batch_size must be in [1, {MAX_POINTS_PER_POST}]")
+        keyed = [_with_key(p) for p in points]
+        results: list[PointResult] = []
+        for start in range(0, len(keyed), batch_size):
+            body = self._body(PointsIn(points=keyed[start : start + batch_size]))
+            out = self._call(PointsOut, "POST", f"/v1/kbs/{kb}/points", json=body)
+            results.extend(out.results)
+        return results
+
+    def list_points(
+        self, kb: str, type_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> PointsPage:
+        params = {k: v for k, v in {"limit": limit, "cursor": cursor}.items() if v is not None}
+        return self._call(PointsPage, "GET", f"/v1/kbs/{kb}/types/{type_id}/points", params=params)
+
+    def iter_points(self, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[PointOut]:
+        """Every point of a type in insertion order, fetched page by page."""
+        cursor: str | None = None
+        while True:
+            page = self.list_points(kb, type_id, limit=page_size, cursor=cursor)
+            yield from page.points
+            if page.next_cursor is None:
+                return
+            cursor = page.next_cursor
+
+    def export_csv(self, kb: str, type_id: str, path: str | Path | None = None) -> str:
+        """The type's table as CSV text (also written to `path` when given)."""
+        text = self.request("GET", f"/v1/kbs/{kb}/types/{type_id}/points.csv").text
+        if path is not None:
+            Path(path).write_text(text, encoding="utf-8")
+        return text
+
+    # -- types -------------------------------------------------------------------------------
+
+    def match_types(
+        self, kb: str, graphs: Iterable[Graph | Mapping[str, Any]]
+    ) -> list[MatchResult]:
+        body = self._body(MatchIn(graphs=[Graph.model_validate(g) for g in graphs]))
+        return self._call(list[MatchResult], "POST", f"/v1/kbs/{kb}/types/match", json=body)
+
+    def list_types(self, kb: str) -> list[TypeSummary]:
+        return self._call(list[TypeSummary], "GET", f"/v1/kbs/{kb}/types")
+
+    def get_type(self, kb: str, type_id: str) -> TypeDetail:
+        return self._call(TypeDetail, "GET", f"/v1/kbs/{kb}/types/{type_id}")
+
+
+@cache
+def _adapter(model: Any) -> TypeAdapter[Any]:
+    return TypeAdapter(model)
+
+
+def _with_key(point: PointIn | Mapping[str, Any]) -> PointIn:
+    model = point if isinstance(point, PointIn) else PointIn.model_validate(point)
+    return model if model.key is not None else model.model_copy(update={"key": uuid.uuid4().hex})

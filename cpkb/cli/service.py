@@ -1,0 +1,225 @@
+"""Service commands: `cpkb serve`, `cpkb db upgrade`, `cpkb kb list|create|delete`, `cpkb types`."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from cpkb.cli import CliError
+
+
+def register(subparsers: Any) -> None:
+    serve = subparsers.add_parser("serve", help="run the knowledge-base service")
+    serve.add_argument(
+        "--db",
+        metavar="URL",
+        help="database URL (default: CPKB_DATABASE_URL "
+        "or sqlite:///cpkb.db in the current directory)",
+    )
+    serve.add_argument("--host", help="address to bind (default 127.0.0.1)")
+    serve.add_argument("--port", type=int, help="port (default 8000)")
+    serve.add_argument("--log-level", default=None, help="uvicorn log level (default info)")
+    serve.set_defaults(handler=_serve)
+
+    db = subparsers.add_parser("db", help="database maintenance")
+    db_sub = db.add_subparsers(dest="db_command", required=True, metavar="ACTION")
+    upgrade = db_sub.add_parser("upgrade", help="migrate the database to the latest schema")
+    upgrade.add_argument("--db", metavar="URL", help="database URL (default as for serve)")
+    upgrade.set_defaults(handler=_db_upgrade)
+
+    kb = subparsers.add_parser("kb", help="list, create or delete knowledge bases")
+    kb_sub = kb.add_subparsers(dest="kb_command", required=True, metavar="ACTION")
+    kb_list = kb_sub.add_parser("list", help="knowledge bases with type and point counts")
+    _client_options(kb_list)
+    kb_list.set_defaults(handler=_kb_list)
+    for action, helptext, handler in (
+        ("create", "create a knowledge base", _kb_create),
+        ("delete", "delete a knowledge base with all its types and points", _kb_delete),
+    ):
+        cmd = kb_sub.add_parser(action, help=helptext)
+        cmd.add_argument("name")
+        _client_options(cmd)
+        cmd.set_defaults(handler=handler)
+
+    types = subparsers.add_parser("types", help="the CP types of a knowledge base, as a table")
+    types.add_argument("--kb", default="default", help="knowledge base (default: default)")
+    _client_options(types)
+    types.set_defaults(handler=_types)
+
+
+def _client_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--url", help="service URL (default: CPKB_URL or http://127.0.0.1:8000)")
+    parser.add_argument("--token", help="access token (default: CPKB_TOKEN)")
+
+
+def _settings(**overrides: Any) -> Any:
+    from pydantic import ValidationError
+
+    from server.settings import Settings
+
+    try:
+        return Settings(**{k: v for k, v in overrides.items() if v is not None})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"])
+        raise CliError(f"bad setting {field}: {first['msg']}") from exc
+
+
+def _shown(url: str) -> str:
+    from sqlalchemy.engine import make_url
+
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:
+        return url
+
+
+def _open_store(url: str) -> Any:
+    from server.db import DatabaseUrlError, Store
+
+    try:
+        return Store.from_url(url)
+    except DatabaseUrlError as exc:
+        raise CliError(str(exc)) from exc
+
+
+def _prepare(store: Any, url: str) -> None:
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from server.app import prepare_database
+    from server.errors import ServiceError
+
+    try:
+        prepare_database(store)
+    except ServiceError as exc:
+        raise CliError(f"cannot open the database {_shown(url)}: {exc.detail}") from exc
+    except SQLAlchemyError as exc:
+        reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0]
+        raise CliError(f"cannot open the database {_shown(url)}: {reason}") from exc
+
+
+def _serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from server.app import create_app
+    from server.security import SecurityConfigError
+
+    settings = _settings(
+        database_url=args.db, host=args.host, port=args.port, log_level=args.log_level
+    )
+    store = _open_store(settings.database_url)
+    _prepare(store, settings.database_url)
+    store.dispose()
+    try:
+        app = create_app(settings)
+    except SecurityConfigError as exc:
+        raise CliError(str(exc)) from exc
+    print(
+        f"cpkb: serving {_shown(settings.database_url)} at "
+        f"http://{settings.host}:{settings.port} (API docs at /docs)",
+        flush=True,
+    )
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=settings.log_level)
+    return 0
+
+
+def _db_upgrade(args: argparse.Namespace) -> int:
+    from migrations import current_revision
+
+    settings = _settings(database_url=args.db)
+    store = _open_store(settings.database_url)
+    _prepare(store, settings.database_url)
+    print(f"{_shown(settings.database_url)}: schema at revision {current_revision(store.engine)}")
+    store.dispose()
+    return 0
+
+
+def _client(args: argparse.Namespace) -> Any:
+    from client import CpkbClient
+
+    settings = _settings(url=args.url)
+    token = args.token or (settings.token.get_secret_value() if settings.token else None)
+    return CpkbClient(settings.url, timeout=30.0, retries=2, backoff=0.1, token=token)
+
+
+def _run(args: argparse.Namespace, call: Any) -> Any:
+    from client import CpkbError, ServiceUnavailable
+
+    with _client(args) as client:
+        try:
+            return call(client)
+        except ServiceUnavailable as exc:
+            if exc.status is None:
+                raise CliError(
+                    f"cannot reach the knowledge base at {client.base_url} "
+                    "(start it with `cpkb serve`, or pass --url)"
+                ) from exc
+            raise CliError(str(exc.detail)) from exc
+        except CpkbError as exc:
+            raise CliError(str(exc.detail)) from exc
+
+
+def _kb_list(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    kbs = _run(args, lambda c: c.list_kbs())
+    table = Table("knowledge base", "types", "points", "created", box=None)
+    for kb in kbs:
+        created = kb.created_at.strftime("%Y-%m-%d %H:%M") if kb.created_at else ""
+        table.add_row(kb.name, str(kb.n_types), str(kb.n_points), created)
+    Console().print(table)
+    return 0
+
+
+def _kb_create(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    try:
+        kb = _run(args, lambda c: c.create_kb(args.name))
+    except ValidationError as exc:
+        raise CliError(
+            f"bad knowledge base name {args.name!r}: use letters, digits, _ . -"
+        ) from exc
+    print(f"created knowledge base {kb.name!r}")
+    return 0
+
+
+def _kb_delete(args: argparse.Namespace) -> int:
+    _run(args, lambda c: c.delete_kb(args.name))
+    print(f"deleted knowledge base {args.name!r}")
+    return 0
+
+
+def _types(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    types = _run(args, lambda c: c.list_types(args.kb))
+    console = Console()
+    if not types:
+        console.print(f"knowledge base {args.kb!r} has no types yet")
+        return 0
+    table = Table(
+        "type",
+        "failure",
+        "decisions",
+        "context",
+        "points",
+        "infeasible",
+        "updated",
+        title=f"knowledge base {args.kb!r}: {len(types)} types",
+    )
+    for t in types:
+        updated = t.updated_at.strftime("%Y-%m-%d %H:%M:%S") if t.updated_at else ""
+        table.add_row(
+            t.type_id,
+            t.failure,
+            ", ".join(t.decisions),
+            ", ".join(t.context),
+            str(t.n_points),
+            str(t.n_infeasible),
+            updated,
+        )
+    console.print(table)
+    return 0

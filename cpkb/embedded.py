@@ -1,0 +1,119 @@
+"""An embedded knowledge base: `cpkb serve` in a subprocess, for one `with` block.
+
+A subprocess rather than a thread, so that the service (and its GP fits) runs on another core
+than the planner that uses it, and so that it dies with nothing shared when the block ends.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import httpx
+
+START_TIMEOUT_S = 60.0
+STOP_TIMEOUT_S = 10.0
+
+
+class EmbeddedServiceError(RuntimeError):
+    """The embedded service did not come up; the message holds the end of its log."""
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that was free a moment ago (the caller retries if it is taken meanwhile)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind((host, 0))
+        return int(sock.getsockname()[1])
+
+
+def _tail(path: Path, lines: int = 15) -> str:
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return ""
+    return "\n".join(text.strip().splitlines()[-lines:])
+
+
+def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            return False
+        try:
+            if httpx.get(f"{url}/healthz", timeout=2.0).status_code == 200:
+                return True
+        except httpx.TransportError:
+            pass
+        time.sleep(0.1)
+    return False
+
+
+def stop_process(process: subprocess.Popen[bytes], timeout: float = STOP_TIMEOUT_S) -> None:
+    """SIGTERM (uvicorn shuts down cleanly), then SIGKILL if it does not stop in time."""
+    if process.poll() is not None:
+        return
+    process.send_signal(signal.SIGTERM)
+    try:
+        process.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+@contextmanager
+def embedded_service(
+    db_url: str | None = None,
+    *,
+    quiet: bool = True,
+    start_timeout: float = START_TIMEOUT_S,
+    env: dict[str, str] | None = None,
+) -> Iterator[str]:
+    """Run `cpkb serve` on a free loopback port; yields its base URL, stops it on exit.
+
+    `db_url` defaults to the service's own default (CPKB_DATABASE_URL, else ./cpkb.db).
+    With `quiet`, the service's log goes to a temporary file, quoted if it fails to start.
+    """
+    command = [sys.executable, "-m", "cpkb", "serve", "--host", "127.0.0.1"]
+    if db_url is not None:
+        command += ["--db", db_url]
+    child_env = {**os.environ, **(env or {})}
+    with tempfile.TemporaryDirectory(prefix="cpkb-embedded-") as tmp:
+        log_path = Path(tmp) / "service.log"
+        for _ in range(3):
+            port = free_port()
+            url = f"http://127.0.0.1:{port}"
+            with open(log_path, "wb") as log:
+                output = log if quiet else None
+                process = subprocess.Popen(
+                    [*command, "--port", str(port)],
+                    stdout=output,
+                    stderr=subprocess.STDOUT if quiet else None,
+                    env=child_env,
+                )
+            try:
+                ready = _wait_ready(url, process, start_timeout)
+            except BaseException:
+                stop_process(process)
+                raise
+            if ready:
+                break
+            stop_process(process)
+            if "address already in use" not in _tail(log_path).lower():
+                raise EmbeddedServiceError(
+                    f"the embedded knowledge base did not start (exit {process.returncode}):\n"
+                    f"{_tail(log_path)}"
+                )
+        else:
+            raise EmbeddedServiceError("no free port for the embedded knowledge base")
+        try:
+            yield url
+        finally:
+            stop_process(process)

@@ -1,0 +1,36 @@
+"""Alembic environment: online only, on the connection handed in by `migrations.upgrade`."""
+
+from __future__ import annotations
+
+from alembic import context
+from sqlalchemy import create_engine
+
+from server.orm import Base
+
+config = context.config
+target_metadata = Base.metadata
+
+
+def _configure_and_run(connection) -> None:  # type: ignore[no-untyped-def]
+    context.configure(
+        connection=connection,
+        target_metadata=target_metadata,
+        version_table=config.get_main_option("version_table") or "cpkb_alembic_version",
+        render_as_batch=connection.dialect.name == "sqlite",
+        compare_type=True,
+    )
+    with context.begin_transaction():
+        context.run_migrations()
+
+
+connection = config.attributes.get("connection")
+if connection is not None:
+    _configure_and_run(connection)
+else:
+    url = config.get_main_option("sqlalchemy.url")
+    if not url:
+        raise RuntimeError("run migrations through migrations.upgrade() or `cpkb db upgrade`")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        _configure_and_run(conn)
+    engine.dispose()

@@ -1,0 +1,16 @@
+"""The routers of the service, listed once: the app includes them in this order.
+
+To add an endpoint family, write a router module and add it to ROUTERS; to wire hooks or
+state at start (see server.hooks), add an installer `fn(app) -> None` to INSTALLERS.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from fastapi import APIRouter, FastAPI
+
+from server.api import health, kbs, points, types
+
+ROUTERS: list[APIRouter] = [health.router, kbs.router, types.router, points.router]
+INSTALLERS: list[Callable[[FastAPI], None]] = []

@@ -1,0 +1,28 @@
+"""Request dependencies: the app's Store, hooks and settings."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from server.db import Store
+from server.hooks import ServiceHooks
+from server.settings import Settings
+
+
+def _store(request: Request) -> Store:
+    return request.app.state.store
+
+
+def _hooks(request: Request) -> ServiceHooks:
+    return request.app.state.hooks
+
+
+def _settings(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+StoreDep = Annotated[Store, Depends(_store)]
+HooksDep = Annotated[ServiceHooks, Depends(_hooks)]
+SettingsDep = Annotated[Settings, Depends(_settings)]

@@ -1,0 +1,19 @@
+"""Liveness and readiness: answers only when the database answers."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from sqlalchemy import text
+
+from client.models import Health
+from cpkb import __version__
+from server.api.deps import StoreDep
+
+router = APIRouter(tags=["health"])
+
+
+@router.get("/healthz")
+def healthz(store: StoreDep) -> Health:
+    with store.transaction() as session:
+        session.execute(text("SELECT 1"))
+    return Health(status="ok", version=__version__, database=store.dialect)

@@ -1,0 +1,35 @@
+"""Knowledge bases."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response, status
+
+from client.models import KnowledgeBase, KnowledgeBaseIn
+from server.api.deps import StoreDep
+from server.services import kbs
+
+router = APIRouter(prefix="/v1/kbs", tags=["knowledge bases"])
+
+
+@router.post("", status_code=status.HTTP_201_CREATED)
+def create_kb(body: KnowledgeBaseIn, store: StoreDep) -> KnowledgeBase:
+    """Create a knowledge base (409 if the name is taken)."""
+    return kbs.create_kb(store, body.name)
+
+
+@router.get("")
+def list_kbs(store: StoreDep) -> list[KnowledgeBase]:
+    """Every knowledge base with its type and point counts."""
+    return kbs.list_kbs(store)
+
+
+@router.get("/{kb}")
+def get_kb(kb: str, store: StoreDep) -> KnowledgeBase:
+    return kbs.get_kb(store, kb)
+
+
+@router.delete("/{kb}", status_code=status.HTTP_204_NO_CONTENT)
+def delete_kb(kb: str, store: StoreDep) -> Response:
+    """Delete a knowledge base and everything in it; `default` comes back empty."""
+    kbs.delete_kb(store, kb)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

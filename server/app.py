@@ -1,0 +1,66 @@
+"""The FastAPI application: `create_app(settings)` migrates the database, makes sure the
+`default` knowledge base exists, and wires routers, error handlers, security and hooks."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import Depends, FastAPI
+
+from cpkb import __version__
+from migrations import upgrade
+from server.api import INSTALLERS, ROUTERS
+from server.db import Store
+from server.errors import install_error_handlers
+from server.hooks import ServiceHooks
+from server.security import authorize, install_security
+from server.services.kbs import DEFAULT_KB, ensure_kb
+from server.settings import Settings
+
+
+def prepare_database(store: Store) -> None:
+    """Migrate to head and create the `default` knowledge base (idempotent, race-safe)."""
+    upgrade(store.engine)
+    with store.transaction(write=True) as session:
+        ensure_kb(session, DEFAULT_KB)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+    store = Store.from_url(
+        settings.database_url,
+        busy_timeout_ms=settings.sqlite_busy_timeout_ms,
+        pool_size=settings.pool_size,
+    )
+    prepare_database(store)
+    hooks = ServiceHooks()
+
+    @asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        for start in hooks.on_startup:
+            start()
+        try:
+            yield
+        finally:
+            for stop in reversed(hooks.on_shutdown):
+                stop()
+            store.dispose()
+
+    app = FastAPI(
+        title="cpkb",
+        version=__version__,
+        summary="Constraint-primitive knowledge base for task and motion planning",
+        lifespan=lifespan,
+        dependencies=[Depends(authorize)],
+    )
+    app.state.settings = settings
+    app.state.store = store
+    app.state.hooks = hooks
+    install_error_handlers(app)
+    install_security(app, settings)
+    for router in ROUTERS:
+        app.include_router(router)
+    for install in INSTALLERS:
+        install(app)
+    return app

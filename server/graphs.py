@@ -1,0 +1,213 @@
+"""Causal graphs -> CP type IDs, and decision values checked against a type's space.
+
+The type ID is networkx's Weisfeiler-Lehman hash of the directed graph with node attribute
+`role:label` and edge attribute `label`: node ids and order do not matter. A hash says
+"probably the same type"; `check_same_type` then confirms with an isomorphism test (roles,
+labels, domains, edge labels) so that a collision or a changed domain is a conflict, never
+a silent merge. Resolved graphs are cached by their JSON, because planners post the same
+few graphs over and over.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import networkx as nx
+from networkx.algorithms.isomorphism import DiGraphMatcher
+
+from client.models import CategoricalDomain, ContinuousDomain, Graph, Value
+
+Domain = CategoricalDomain | ContinuousDomain
+WL_ITERATIONS = 3
+# networkx >= 3.5 tells on every call that directed hashes changed in 3.5; we rely on >= 3.5.
+warnings.filterwarnings("ignore", message="The hashes produced for directed graphs changed")
+ROLE_ORDER = {"failure": 0, "decision": 1, "context": 2, "connection": 3}
+
+
+class GraphError(ValueError):
+    """The graph is not a valid causal graph; the message names the field (relative path)."""
+
+
+class TypeConflict(Exception):
+    """Same hash as a stored type, but not the same type; the message says why."""
+
+
+@dataclass(frozen=True)
+class ResolvedGraph:
+    """A validated graph with its type ID, canonical form and decision space."""
+
+    type_id: str
+    canonical: dict[str, Any]
+    space: dict[str, Domain]
+    failure: str
+    decisions: list[str]
+    context: list[str]
+
+    def space_json(self) -> dict[str, Any]:
+        return {label: domain.model_dump() for label, domain in self.space.items()}
+
+
+def validate_graph(graph: Graph) -> None:
+    """Structural rules beyond the wire model's: raise GraphError naming the field."""
+    ids: dict[str, int] = {}
+    failures = 0
+    decision_labels: dict[str, int] = {}
+    for i, node in enumerate(graph.nodes):
+        if node.id in ids:
+            raise GraphError(f"nodes[{i}].id: duplicate node id {node.id!r}")
+        ids[node.id] = i
+        if node.role == "failure":
+            failures += 1
+        if node.role == "decision":
+            if node.domain is None:
+                raise GraphError(f"nodes[{i}].domain: decision node {node.id!r} needs a domain")
+            if node.label in decision_labels:
+                raise GraphError(
+                    f"nodes[{i}].label: decision label {node.label!r} is used twice "
+                    f"(also nodes[{decision_labels[node.label]}])"
+                )
+            decision_labels[node.label] = i
+        elif node.domain is not None:
+            raise GraphError(f"nodes[{i}].domain: only decision nodes carry a domain")
+    if failures != 1:
+        raise GraphError(f"nodes: a causal graph has exactly one failure node, found {failures}")
+    if not decision_labels:
+        raise GraphError("nodes: a causal graph needs at least one decision node")
+    seen: set[tuple[str, str]] = set()
+    for j, edge in enumerate(graph.edges):
+        for end in ("source", "target"):
+            if getattr(edge, end) not in ids:
+                raise GraphError(f"edges[{j}].{end}: no node with id {getattr(edge, end)!r}")
+        if edge.source == edge.target:
+            raise GraphError(f"edges[{j}]: an edge from a node to itself")
+        if (edge.source, edge.target) in seen:
+            raise GraphError(f"edges[{j}]: a second edge {edge.source!r} -> {edge.target!r}")
+        seen.add((edge.source, edge.target))
+
+
+def _digraph(graph: Graph) -> nx.DiGraph:
+    g = nx.DiGraph()
+    for node in graph.nodes:
+        domain = node.domain.model_dump() if node.domain is not None else None
+        g.add_node(
+            node.id, wl=f"{node.role}:{node.label}", role=node.role, label=node.label, domain=domain
+        )
+    for edge in graph.edges:
+        g.add_edge(edge.source, edge.target, label=edge.label)
+    return g
+
+
+def _canonical(graph: Graph, g: nx.DiGraph) -> dict[str, Any]:
+    """Node ids renamed n0, n1, ... in an order fixed by role, label and WL neighbourhood."""
+    subtree = nx.weisfeiler_lehman_subgraph_hashes(
+        g, node_attr="wl", edge_attr="label", iterations=WL_ITERATIONS
+    )
+    order = sorted(
+        graph.nodes, key=lambda n: (ROLE_ORDER[n.role], n.label, tuple(subtree[n.id]), n.id)
+    )
+    rename = {node.id: f"n{i}" for i, node in enumerate(order)}
+    nodes = []
+    for node in order:
+        item = node.model_dump(exclude_none=True)
+        item["id"] = rename[node.id]
+        nodes.append(item)
+    edges = sorted(
+        (
+            {"source": rename[e.source], "target": rename[e.target], "label": e.label}
+            for e in graph.edges
+        ),
+        key=lambda e: (int(e["source"][1:]), int(e["target"][1:]), e["label"]),
+    )
+    return {"nodes": nodes, "edges": edges}
+
+
+@lru_cache(maxsize=4096)
+def _resolve_json(graph_json: str) -> ResolvedGraph:
+    graph = Graph.model_validate_json(graph_json)
+    validate_graph(graph)
+    g = _digraph(graph)
+    type_id = nx.weisfeiler_lehman_graph_hash(
+        g, node_attr="wl", edge_attr="label", iterations=WL_ITERATIONS
+    )
+    space = {n.label: n.domain for n in graph.nodes if n.role == "decision" and n.domain}
+    return ResolvedGraph(
+        type_id=type_id,
+        canonical=_canonical(graph, g),
+        space=dict(sorted(space.items())),
+        failure=next(n.label for n in graph.nodes if n.role == "failure"),
+        decisions=sorted(space),
+        context=sorted(n.label for n in graph.nodes if n.role == "context"),
+    )
+
+
+def resolve_graph(graph: Graph) -> ResolvedGraph:
+    """Validate `graph` and compute its type (GraphError if invalid)."""
+    return _resolve_json(graph.model_dump_json())
+
+
+def check_same_type(new: ResolvedGraph, stored_graph: dict[str, Any]) -> None:
+    """Raise TypeConflict unless `new` is the stored type: isomorphic, same decision domains."""
+    if new.canonical == stored_graph:
+        return
+    _check_isomorphic(new.type_id, _freeze(new.canonical), _freeze(stored_graph))
+
+
+def _freeze(graph: dict[str, Any]) -> str:
+    return Graph.model_validate(graph).model_dump_json()
+
+
+@lru_cache(maxsize=1024)
+def _check_isomorphic(type_id: str, new_json: str, stored_json: str) -> None:
+    new = Graph.model_validate_json(new_json)
+    stored = Graph.model_validate_json(stored_json)
+    g_new, g_stored = _digraph(new), _digraph(stored)
+    matcher = DiGraphMatcher(
+        g_new,
+        g_stored,
+        node_match=lambda a, b: a["wl"] == b["wl"],
+        edge_match=lambda a, b: a["label"] == b["label"],
+    )
+    if not matcher.is_isomorphic():
+        raise TypeConflict(
+            f"type {type_id}: the graph has the same Weisfeiler-Lehman hash as the stored "
+            "type but is not isomorphic to it (a hash collision); relabel a node to tell them apart"
+        )
+    stored_space = {n.label: n.domain for n in stored.nodes if n.role == "decision"}
+    for node in new.nodes:
+        if node.role == "decision" and node.domain != stored_space.get(node.label):
+            raise TypeConflict(
+                f"type {type_id}: decision {node.label!r} has domain "
+                f"{node.domain.model_dump() if node.domain else None}, but the stored type has "
+                f"{stored_space[node.label].model_dump() if stored_space.get(node.label) else None}"
+            )
+
+
+def check_x(x: dict[str, Value], space: dict[str, Domain]) -> None:
+    """Raise GraphError (message names the label) unless `x` is one value per decision."""
+    missing = [label for label in space if label not in x]
+    if missing:
+        raise GraphError(f"x: missing value for decision {missing[0]!r}")
+    extra = [label for label in x if label not in space]
+    if extra:
+        raise GraphError(f"x.{extra[0]}: not a decision of this graph ({sorted(space)})")
+    for label, domain in space.items():
+        value = x[label]
+        if isinstance(domain, CategoricalDomain):
+            if not isinstance(value, str):
+                raise GraphError(f"x.{label}: expected one of {domain.choices}, got {value!r}")
+            if value not in domain.choices:
+                raise GraphError(f"x.{label}: {value!r} is not one of {domain.choices}")
+            continue
+        if isinstance(value, str):
+            raise GraphError(f"x.{label}: expected a list of {len(domain.low)} numbers")
+        if len(value) != len(domain.low):
+            raise GraphError(f"x.{label}: expected {len(domain.low)} numbers, got {len(value)}")
+        for i, (v, lo, hi) in enumerate(zip(value, domain.low, domain.high, strict=True)):
+            if not math.isfinite(v):
+                raise GraphError(f"x.{label}[{i}]: {v} is not a finite number")
+            if not lo <= v <= hi:
+                raise GraphError(f"x.{label}[{i}]: {v} is outside [{lo}, {hi}]")

@@ -1,0 +1,302 @@
+"""Posting points (bulk, idempotent), paging through a type's points, CSV export.
+
+A post is validated and hashed before any transaction starts; the write transaction then
+inserts new types and points with `ON CONFLICT DO NOTHING`, so that a repeated idempotency key,
+even one racing in from another process, stores nothing and gets the original answer.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import insert, select, update
+from sqlalchemy.orm import Session
+
+from client.models import PointIn, PointOut, PointResult, PointsPage
+from server.db import Store
+from server.errors import InvalidInput
+from server.graphs import GraphError, ResolvedGraph, check_x
+from server.orm import PointRow, TypeRow, utcnow
+from server.services.kbs import kb_id
+from server.services.types import check_or_409, resolve_or_422, type_row
+from server.sql import insert_ignoring_conflicts
+
+INT64 = 2**63 - 1
+PROVENANCE = ("task", "run", "rollout", "worker", "time")
+
+
+@dataclass(frozen=True)
+class PostOutcome:
+    results: list[PointResult]
+    # Types that gained at least one point in this post (for the surrogate engine).
+    touched: frozenset[str]
+    n_new: int
+    n_new_types: int
+
+
+def _finite_json(value: Any, where: str) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise InvalidInput(f"{where}: {value} is not a finite number")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _finite_json(v, f"{where}.{k}")
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _finite_json(v, f"{where}[{i}]")
+
+
+def _row(point: PointIn, where: str) -> dict[str, Any]:
+    """The column values of a point (without kb and type), provenance checked."""
+    source = point.source.model_dump() if point.source is not None else {}
+    extra = {k: v for k, v in source.items() if k not in PROVENANCE}
+    _finite_json(extra, f"{where}.source")
+    rollout = source.get("rollout")
+    if rollout is not None and not -INT64 <= rollout <= INT64:
+        raise InvalidInput(f"{where}.source.rollout: {rollout} does not fit in 64 bits")
+    return {
+        "x": point.x,
+        "feasible": point.feasible,
+        "task": source.get("task"),
+        "run": source.get("run"),
+        "rollout": rollout,
+        "worker": source.get("worker"),
+        "time": source.get("time"),
+        "extra": extra or None,
+        "key": point.key,
+    }
+
+
+def _prepare(points: list[PointIn]) -> tuple[list[ResolvedGraph], list[dict[str, Any]]]:
+    resolved, rows = [], []
+    for i, point in enumerate(points):
+        where = f"points[{i}]"
+        graph = resolve_or_422(point.graph, f"{where}.graph")
+        try:
+            check_x(point.x, graph.space)
+        except GraphError as exc:
+            raise InvalidInput(f"{where}.{exc}") from exc
+        resolved.append(graph)
+        rows.append(_row(point, where))
+    return resolved, rows
+
+
+def _types(
+    session: Session, kb_pk: int, resolved: list[ResolvedGraph]
+) -> dict[str, tuple[int, bool]]:
+    """type_id -> (row id, created by this post); new types inserted, stored ones checked."""
+    distinct = {r.type_id: r for r in resolved}
+    now = utcnow()
+    fresh = [
+        {
+            "kb_id": kb_pk,
+            "type_id": r.type_id,
+            "failure": r.failure,
+            "decisions": r.decisions,
+            "context": r.context,
+            "graph": r.canonical,
+            "space": r.space_json(),
+            "n_points": 0,
+            "n_infeasible": 0,
+            "created_at": now,
+            "updated_at": now,
+        }
+        for r in sorted(distinct.values(), key=lambda r: r.type_id)
+    ]
+    stmt = insert_ignoring_conflicts(session, TypeRow, ["kb_id", "type_id"])
+    created = {
+        type_id for (type_id,) in session.execute(stmt.returning(TypeRow.type_id), fresh).all()
+    }
+    rows = session.scalars(
+        select(TypeRow).where(TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(distinct))
+    ).all()
+    out = {}
+    for row in rows:
+        if row.type_id not in created:
+            check_or_409(distinct[row.type_id], row)
+        out[row.type_id] = (row.id, row.type_id in created)
+    return out
+
+
+def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
+    """Store a batch in one transaction; a repeated key gets its original result."""
+    resolved, rows = _prepare(points)
+    with store.transaction(write=True) as session:
+        kb_pk = kb_id(session, kb)
+        types = _types(session, kb_pk, resolved)
+        now = utcnow()
+        for graph, row in zip(resolved, rows, strict=True):
+            type_pk, created = types[graph.type_id]
+            row.update(kb_id=kb_pk, type_pk=type_pk, new_type=created, created_at=now)
+
+        keyed: dict[str, dict[str, Any]] = {}
+        for row in rows:
+            if row["key"] is not None:
+                keyed.setdefault(row["key"], row)
+        keyless = [row for row in rows if row["key"] is None]
+
+        inserted: list[dict[str, Any]] = []
+        by_key: dict[str, PointResult] = {}
+        if keyless:
+            ids = session.scalars(
+                insert(PointRow).returning(PointRow.id, sort_by_parameter_order=True), keyless
+            ).all()
+            for row, point_id in zip(keyless, ids, strict=True):
+                row["id"] = point_id
+            inserted.extend(keyless)
+        if keyed:
+            stmt = insert_ignoring_conflicts(session, PointRow, ["kb_id", "key"])
+            for point_id, key in session.execute(
+                stmt.returning(PointRow.id, PointRow.key), list(keyed.values())
+            ):
+                keyed[key]["id"] = point_id
+                inserted.append(keyed[key])
+            repeated = [k for k, row in keyed.items() if "id" not in row]
+            by_key = _stored_results(session, kb_pk, repeated)
+
+        _count(session, inserted, now)
+        type_ids = {pk: type_id for type_id, (pk, _) in types.items()}
+        results = []
+        for graph, row in zip(resolved, rows, strict=True):
+            key = row["key"]
+            if key is not None and key in by_key:
+                results.append(by_key[key])
+                continue
+            source = keyed[key] if key is not None else row
+            results.append(
+                PointResult(
+                    type_id=graph.type_id, point_id=source["id"], new_type=source["new_type"]
+                )
+            )
+        touched = frozenset(type_ids[row["type_pk"]] for row in inserted)
+    n_new_types = sum(1 for _, created in types.values() if created)
+    return PostOutcome(results, touched, n_new=len(inserted), n_new_types=n_new_types)
+
+
+def _stored_results(session: Session, kb_pk: int, keys: list[str]) -> dict[str, PointResult]:
+    out: dict[str, PointResult] = {}
+    for start in range(0, len(keys), 500):
+        chunk = keys[start : start + 500]
+        rows = session.execute(
+            select(PointRow.key, PointRow.id, PointRow.new_type, TypeRow.type_id)
+            .join(TypeRow, TypeRow.id == PointRow.type_pk)
+            .where(PointRow.kb_id == kb_pk, PointRow.key.in_(chunk))
+        )
+        for key, point_id, new_type, type_id in rows:
+            out[key] = PointResult(type_id=type_id, point_id=point_id, new_type=new_type)
+    return out
+
+
+def _count(session: Session, inserted: list[dict[str, Any]], now: Any) -> None:
+    """Add the new points to their types' counters, in type order (no lock-order deadlock)."""
+    totals: dict[int, list[int]] = defaultdict(lambda: [0, 0])
+    for row in inserted:
+        totals[row["type_pk"]][0] += 1
+        totals[row["type_pk"]][1] += 0 if row["feasible"] else 1
+    for type_pk in sorted(totals):
+        n, n_infeasible = totals[type_pk]
+        session.execute(
+            update(TypeRow)
+            .where(TypeRow.id == type_pk)
+            .values(
+                n_points=TypeRow.n_points + n,
+                n_infeasible=TypeRow.n_infeasible + n_infeasible,
+                updated_at=now,
+            )
+        )
+
+
+def _point_out(row: PointRow, type_id: str) -> PointOut:
+    source = {name: getattr(row, name) for name in PROVENANCE if getattr(row, name) is not None}
+    source.update(row.extra or {})
+    return PointOut(
+        point_id=row.id,
+        type_id=type_id,
+        x=row.x,
+        feasible=row.feasible,
+        source=source or None,
+        key=row.key,
+        created_at=row.created_at,
+    )
+
+
+def parse_cursor(cursor: str | None) -> int | None:
+    if cursor is None or cursor == "":
+        return None
+    if not cursor.isdigit() or len(cursor) > 19:
+        raise InvalidInput(f"cursor: {cursor!r} is not a cursor this server gave out")
+    return int(cursor)
+
+
+def list_points(
+    store: Store, kb: str, type_id: str, *, limit: int, cursor: str | None
+) -> PointsPage:
+    """A page of a type's points in insertion order; `next_cursor` is None on the last page."""
+    after = parse_cursor(cursor)
+    with store.transaction() as session:
+        row = type_row(session, kb, type_id)
+        query = select(PointRow).where(PointRow.type_pk == row.id)
+        if after is not None:
+            query = query.where(PointRow.id > after)
+        points = list(session.scalars(query.order_by(PointRow.id).limit(limit + 1)))
+    more = len(points) > limit
+    points = points[:limit]
+    return PointsPage(
+        points=[_point_out(p, type_id) for p in points],
+        next_cursor=str(points[-1].id) if more else None,
+    )
+
+
+def csv_header(space: dict[str, Any]) -> list[str]:
+    """One column per categorical decision, one per dimension of a continuous one."""
+    columns = ["point_id", "feasible"]
+    for label, domain in space.items():
+        if domain["kind"] == "continuous":
+            columns.extend(f"{label}[{i}]" for i in range(len(domain["low"])))
+        else:
+            columns.append(label)
+    return [*columns, *PROVENANCE, "key", "created_at"]
+
+
+def iter_csv(store: Store, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[str]:
+    """The type's table as CSV, read page by page (checks kb and type before the first line)."""
+    with store.transaction() as session:
+        space = type_row(session, kb, type_id).space
+    return _csv_lines(store, kb, type_id, space, page_size)
+
+
+def _csv_lines(
+    store: Store, kb: str, type_id: str, space: dict[str, Any], page_size: int
+) -> Iterator[str]:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer)
+
+    def flush() -> str:
+        text = buffer.getvalue()
+        buffer.seek(0)
+        buffer.truncate()
+        return text
+
+    writer.writerow(csv_header(space))
+    yield flush()
+    cursor: str | None = None
+    while True:
+        page = list_points(store, kb, type_id, limit=page_size, cursor=cursor)
+        for p in page.points:
+            values: list[Any] = [p.point_id, int(p.feasible)]
+            for label, domain in space.items():
+                v = p.x[label]
+                values.extend(v if domain["kind"] == "continuous" else [v])
+            source = p.source or {}
+            values.extend(source.get(name, "") for name in PROVENANCE)
+            values.extend([p.key or "", p.created_at.isoformat() if p.created_at else ""])
+            writer.writerow(values)
+        yield flush()
+        if page.next_cursor is None:
+            return
+        cursor = page.next_cursor

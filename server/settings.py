@@ -1,0 +1,46 @@
+"""Service settings: the one place that reads the environment (prefix `CPKB_`).
+
+The default database is a SQLite file `cpkb.db` in the current directory, so that
+`cpkb serve`, `cpkb plan` and `cpkb db upgrade` run from one directory share one knowledge
+base without configuration; point `CPKB_DATABASE_URL` (or `--db`) elsewhere for anything else,
+e.g. `postgresql+psycopg://user@host:5432/cpkb`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field, SecretStr
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
+DEFAULT_PORT = 8000
+
+
+class Settings(BaseSettings):
+    """Every knob of the service; each field `foo` is read from `CPKB_FOO`."""
+
+    model_config = SettingsConfigDict(env_prefix="CPKB_", extra="ignore")
+
+    database_url: str = DEFAULT_DATABASE_URL
+    host: str = "127.0.0.1"
+    port: int = Field(default=DEFAULT_PORT, ge=0, le=65535)
+    # Where the CLI and clients find a running service (`cpkb kb list`, `cpkb types`).
+    url: str = f"http://127.0.0.1:{DEFAULT_PORT}"
+
+    # Limits: a request body, points per page.
+    max_body_bytes: int = Field(default=32 * 1024 * 1024, ge=1024)
+    default_page_size: int = Field(default=100, ge=1)
+    max_page_size: int = Field(default=1000, ge=1)
+
+    # Database behaviour.
+    sqlite_busy_timeout_ms: int = Field(default=30_000, ge=0)
+    pool_size: int = Field(default=10, ge=1)
+
+    # Access (used by server.security).
+    token: SecretStr | None = None
+    tokens_file: Path | None = None
+    auth_reads: bool = False
+    cors_origins: list[str] = Field(default_factory=list)
+
+    log_level: str = "info"
