@@ -1,0 +1,119 @@
+"""Acquisition functions over the *free* variables of a search.
+
+An acquisition is a callable `columns -> scores (n,)` (see `surrogate.encoding` for columns), to be
+maximised by `surrogate.optimize.maximize`. Fixed variables are bound when the acquisition is built,
+so the optimiser only ever sees the variables it chooses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from surrogate.encoding import Columns, Domain, EncodingError, SpaceEncoder, Value, value_column
+from surrogate.models import FeasibilityPredictor, RegressionPredictor
+
+
+class Acquisition(Protocol):
+    def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray: ...
+
+
+def _fixed_columns(
+    encoder: SpaceEncoder, rename: Mapping[str, str], fixed: Mapping[str, Value]
+) -> Columns:
+    """1-row columns for the encoder's variables whose search variable is fixed."""
+    cols: Columns = {}
+    for var in encoder.vars:
+        search_var = rename.get(var.name, var.name)
+        if search_var in fixed:
+            cols[var.name] = value_column(search_var, var.domain, [fixed[search_var]])
+    return cols
+
+
+@dataclass(frozen=True)
+class ConstraintTerm:
+    """One constraint type in an MPF: its predictor, its decision space (labels -> domains) and
+    `bind`: label -> search variable. Labels bound to fixed variables are resolved at build time."""
+
+    name: str
+    predictor: FeasibilityPredictor
+    encoder: SpaceEncoder
+    bind: Mapping[str, str]
+    fixed_cols: Columns
+
+    @classmethod
+    def build(
+        cls,
+        name: str,
+        predictor: FeasibilityPredictor,
+        space: Mapping[str, Domain],
+        bind: Mapping[str, str],
+        fixed: Mapping[str, Value],
+    ) -> ConstraintTerm:
+        encoder = SpaceEncoder(space)
+        missing = [label for label in space if label not in bind]
+        if missing:
+            raise EncodingError(f"bind.{missing[0]}", "decision label is not bound")
+        return cls(name, predictor, encoder, dict(bind), _fixed_columns(encoder, bind, fixed))
+
+    def proba(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        own: Columns = dict(self.fixed_cols)
+        for label, var in self.bind.items():
+            if label not in own:
+                own[label] = cols[var]
+        return self.predictor.proba(self.encoder.encode(own))
+
+
+@dataclass(frozen=True)
+class MPF:
+    """Minimum probability of feasibility: alpha(x) = min_i P(CP_i feasible | x)."""
+
+    terms: Sequence[ConstraintTerm]
+
+    def per_term(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        """`(k, n)` P(feasible) of each term."""
+        return np.stack([term.proba(cols) for term in self.terms])
+
+    def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        return self.per_term(cols).min(axis=0)
+
+
+@dataclass(frozen=True)
+class UCB:
+    """GP-UCB `mu + sqrt(beta) sigma`, in the standardised units of the fit (ordering is what
+    counts); `space` is the regression's whole input space, `fixed` pins earlier decisions."""
+
+    predictor: RegressionPredictor
+    encoder: SpaceEncoder
+    beta: float
+    fixed_cols: Columns
+
+    @classmethod
+    def build(
+        cls,
+        predictor: RegressionPredictor,
+        space: Mapping[str, Domain],
+        beta: float = 2.0,
+        fixed: Mapping[str, Value] | None = None,
+    ) -> UCB:
+        encoder = SpaceEncoder(space)
+        return cls(predictor, encoder, beta, _fixed_columns(encoder, {}, fixed or {}))
+
+    def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        own = {**{k: v for k, v in cols.items() if k not in self.fixed_cols}, **self.fixed_cols}
+        mean, std = self.predictor.predict(self.encoder.encode(own))
+        scale = self.predictor.y_scale
+        return (mean - self.predictor.y_shift) / scale + np.sqrt(self.beta) * std / scale
+
+
+def ucb(
+    predictor: RegressionPredictor,
+    space: Mapping[str, Domain],
+    beta: float = 2.0,
+    fixed: Mapping[str, Value] | None = None,
+) -> UCB:
+    """Shorthand for `UCB.build`."""
+    return UCB.build(predictor, space, beta, fixed)

@@ -1,0 +1,164 @@
+"""Decision spaces -> GP input space (and back).
+
+A point is a mapping `{var: value}` (a choice name or a list of floats). Vectorised code works on
+*columns*: `{var: array}` with an int array `(n,)` of choice indexes for a categorical variable and
+a float array `(n, d)` in the domain's own units for a continuous one. `SpaceEncoder.encode` turns
+columns into the GP input `Z` of shape `(n, D)`: continuous values scaled to [0, 1]; a categorical
+one-hot, or its declared `embedding` (e.g. a grasp direction's unit approach vector, rescaled as a
+whole into [0, 1] so that angles are kept). A categorical is never an ordinal code.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from client.models import CategoricalDomain, ContinuousDomain
+
+Domain = CategoricalDomain | ContinuousDomain
+Columns = dict[str, np.ndarray]
+Value = str | list[float]
+
+
+class EncodingError(ValueError):
+    """A value does not fit its domain; `field` names the offending variable."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+
+
+def same_domain(a: Domain, b: Domain) -> bool:
+    """Whether two domains describe the same set of values (embeddings may differ)."""
+    if isinstance(a, CategoricalDomain) and isinstance(b, CategoricalDomain):
+        return list(a.choices) == list(b.choices)
+    if isinstance(a, ContinuousDomain) and isinstance(b, ContinuousDomain):
+        return np.allclose(a.low, b.low) and np.allclose(a.high, b.high)
+    return False
+
+
+@dataclass(frozen=True)
+class _Var:
+    name: str
+    domain: Domain
+    start: int  # first column of this variable in Z
+    width: int
+    table: np.ndarray | None = None  # categorical: (k, width) rows used for the choices
+
+
+def _categorical_table(domain: CategoricalDomain) -> np.ndarray:
+    if domain.embedding is None:
+        return np.eye(len(domain.choices))
+    raw = np.array([domain.embedding[c] for c in domain.choices], dtype=float)
+    lo, hi = raw.min(), raw.max()
+    return (raw - lo) / (hi - lo) if hi > lo else np.full_like(raw, 0.5)
+
+
+class SpaceEncoder:
+    """Encodes points of one decision space (variables in the given order) into `[0, 1]^D`."""
+
+    def __init__(self, space: Mapping[str, Domain]) -> None:
+        self.space: dict[str, Domain] = dict(space)
+        self.vars: list[_Var] = []
+        start = 0
+        for name, domain in self.space.items():
+            if isinstance(domain, CategoricalDomain):
+                table = _categorical_table(domain)
+                var = _Var(name, domain, start, table.shape[1], table)
+            else:
+                var = _Var(name, domain, start, len(domain.low))
+            self.vars.append(var)
+            start += var.width
+        self.dim = start
+
+    # --- points <-> columns -------------------------------------------------------------
+    def columns(self, points: Sequence[Mapping[str, Value]]) -> Columns:
+        """Validated columns of `points`; every variable must be present; extra keys ignored."""
+        cols: Columns = {}
+        for var in self.vars:
+            values = []
+            for point in points:
+                if var.name not in point:
+                    raise EncodingError(var.name, "missing value")
+                values.append(point[var.name])
+            cols[var.name] = value_column(var.name, var.domain, values)
+        return cols
+
+    def points(self, cols: Mapping[str, np.ndarray]) -> list[dict[str, Value]]:
+        """The inverse of `columns`: JSON-ready points."""
+        n = len(next(iter(cols.values()))) if cols else 0
+        out: list[dict[str, Value]] = [{} for _ in range(n)]
+        for var in self.vars:
+            col = cols[var.name]
+            for i in range(n):
+                out[i][var.name] = column_value(var.domain, col, i)
+        return out
+
+    # --- columns <-> Z ------------------------------------------------------------------
+    def encode(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        """`(n, D)` GP inputs; broadcasting a column of length 1 to the others' length."""
+        n = max(len(cols[v.name]) for v in self.vars)
+        z = np.empty((n, self.dim))
+        for var in self.vars:
+            col = cols[var.name]
+            block = slice(var.start, var.start + var.width)
+            if var.table is not None:
+                z[:, block] = var.table[np.asarray(col, dtype=int)]
+            else:
+                low = np.asarray(var.domain.low)
+                high = np.asarray(var.domain.high)
+                z[:, block] = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (
+                    high - low
+                )
+        return z
+
+    def decode(self, z: np.ndarray) -> Columns:
+        """Columns nearest to `z` (a categorical takes the closest choice row)."""
+        cols: Columns = {}
+        for var in self.vars:
+            block = z[:, var.start : var.start + var.width]
+            if var.table is not None:
+                d2 = ((block[:, None, :] - var.table[None, :, :]) ** 2).sum(-1)
+                cols[var.name] = d2.argmin(axis=1)
+            else:
+                low = np.asarray(var.domain.low)
+                high = np.asarray(var.domain.high)
+                cols[var.name] = low + np.clip(block, 0.0, 1.0) * (high - low)
+        return cols
+
+    def encode_points(self, points: Sequence[Mapping[str, Value]]) -> np.ndarray:
+        return self.encode(self.columns(points))
+
+
+def value_column(field: str, domain: Domain, values: Sequence[object]) -> np.ndarray:
+    """A column for `values` of one variable, or EncodingError naming `field`."""
+    if isinstance(domain, CategoricalDomain):
+        index = {c: i for i, c in enumerate(domain.choices)}
+        out = np.empty(len(values), dtype=int)
+        for i, value in enumerate(values):
+            if not isinstance(value, str) or value not in index:
+                raise EncodingError(field, f"{value!r} is not one of {list(domain.choices)}")
+            out[i] = index[value]
+        return out
+    d = len(domain.low)
+    out_f = np.empty((len(values), d))
+    low, high = np.asarray(domain.low), np.asarray(domain.high)
+    for i, value in enumerate(values):
+        if not isinstance(value, list | tuple) or len(value) != d:
+            raise EncodingError(field, f"expected a list of {d} numbers, got {value!r}")
+        try:
+            vec = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise EncodingError(field, f"expected numbers, got {value!r}") from None
+        if not np.all(np.isfinite(vec)) or np.any(vec < low - 1e-9) or np.any(vec > high + 1e-9):
+            raise EncodingError(field, f"{value!r} is outside [{domain.low}, {domain.high}]")
+        out_f[i] = vec
+    return out_f
+
+
+def column_value(domain: Domain, col: np.ndarray, i: int) -> Value:
+    if isinstance(domain, CategoricalDomain):
+        return domain.choices[int(col[i])]
+    return [float(v) for v in np.asarray(col[i]).reshape(-1)]
