@@ -46,17 +46,20 @@ def plan_run(task: str, method: str, seed: int, **kwargs: object) -> object:
 
 
 def known_methods() -> set[str]:
-    import planner.search.samplers.optuna_tpe  # noqa: F401
-
     import planner.search.samplers as samplers
+    import planner.search.samplers.optuna_tpe  # noqa: F401
 
     return set(samplers.methods()) | {TRANSFER_METHOD}
 
 
 def known_tasks() -> set[str]:
-    from planner.tasks import task_names
+    from planner.tasks import list_tasks
 
-    return set(task_names())
+    return {task.name for task in list_tasks()}
+
+
+def _is_task_file(task: str) -> bool:
+    return "/" in task or task.endswith((".yaml", ".yml"))
 
 
 def check_request(settings: BenchSettings) -> None:
@@ -68,7 +71,10 @@ def check_request(settings: BenchSettings) -> None:
     needed = set(settings.tasks)
     if TRANSFER_METHOD in settings.methods:
         needed |= {p for t in settings.tasks for p in PREDECESSORS.get(t, ())}
-    unknown_t = sorted(needed - tasks)
+    missing_files = [t for t in needed if _is_task_file(t) and not Path(t).is_file()]
+    if missing_files:
+        raise ValueError(f"no such task file: {missing_files[0]}")
+    unknown_t = sorted(t for t in needed - tasks if not _is_task_file(t))
     if unknown_t:
         raise ValueError(f"unknown task {unknown_t[0]!r} (known: {', '.join(sorted(tasks))})")
 

@@ -9,8 +9,10 @@ runs single-threaded BLAS, so `workers` processes use `workers` cores.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import multiprocessing
 import os
+import re
 import time
 import traceback
 import uuid
@@ -27,6 +29,7 @@ RunFn = Callable[..., Any]
 `to_json()` (dict or JSON text) or a mapping, holding at least `solved`, `rollouts`, `wall_s`."""
 
 REQUIRED_FIELDS = ("solved", "rollouts", "wall_s")
+KB_NAME_MAX = 64
 
 
 class KbService(Protocol):
@@ -55,8 +58,15 @@ class Job:
 
     @property
     def kb_name(self) -> str:
+        """Readable and unique within the bench; within the service's 64 safe characters."""
         s = self.scenario
-        return f"{self.kb_prefix}-{s.task}-{s.method}-s{s.seed}"
+        readable = re.sub(
+            r"[^A-Za-z0-9_.-]", "_", f"{self.kb_prefix}-{s.task}-{s.method}-s{s.seed}"
+        )
+        if len(readable) <= KB_NAME_MAX:
+            return readable
+        digest = hashlib.sha1(f"{s.task}/{s.method}".encode()).hexdigest()[:12]
+        return f"{self.kb_prefix}-{digest}-s{s.seed}"
 
 
 @dataclass

@@ -66,3 +66,31 @@ def toy_run(
         "sim_s": 0.0,
         "kb_s": 0.0,
     }
+
+
+TOY_GRAPH = {
+    "nodes": [
+        {"id": "f", "role": "failure", "label": "Inv-kin"},
+        {
+            "id": "d",
+            "role": "decision",
+            "label": "#x",
+            "domain": {"kind": "continuous", "low": [0.0], "high": [1.0]},
+        },
+    ],
+    "edges": [{"source": "d", "target": "f", "label": "arg"}],
+}
+
+
+def toy_run_with_kb(task: str, method: str, seed: int, **kwargs: object) -> dict[str, object]:
+    """`toy_run`, plus: note how many points the scenario's knowledge base holds at the start,
+    then post one point to it (so a KB shared between scenarios would show)."""
+    from client import CpkbClient
+
+    with CpkbClient(str(kwargs["kb_url"])) as client:
+        points_before = client.get_kb(str(kwargs["kb"])).n_points
+        client.post_points(
+            str(kwargs["kb"]), [{"graph": TOY_GRAPH, "x": {"#x": [0.5]}, "feasible": False}]
+        )
+    result = toy_run(task, method, seed, **kwargs)  # type: ignore[arg-type]
+    return {**result, "kb_points_before": points_before}
