@@ -205,7 +205,8 @@ def metrics_response() -> Response:
 def install_observability(
     app: FastAPI, store_reader: Callable[[], Iterable[tuple[str, int, int]]] | None = None
 ) -> None:
-    """Add `/metrics` and the timing middleware to `app`; `store_reader` feeds the gauges."""
+    """Add `/metrics` and the timing middleware to `app`. The store gauges read `store_reader`,
+    by default the service's own knowledge-base listing over `app.state.store`."""
     app.add_middleware(MetricsMiddleware)
     app.add_api_route(
         "/metrics",
@@ -214,8 +215,19 @@ def install_observability(
         include_in_schema=False,
         response_class=Response,
     )
+    if store_reader is None and getattr(app.state, "store", None) is not None:
+        store_reader = _kb_listing(app.state.store)
     if store_reader is not None:
         set_store_reader(store_reader)
+
+
+def _kb_listing(store: Any) -> Callable[[], list[tuple[str, int, int]]]:
+    from server.services.kbs import list_kbs
+
+    def read() -> list[tuple[str, int, int]]:
+        return [(kb.name, kb.n_types, kb.n_points) for kb in list_kbs(store)]
+
+    return read
 
 
 # Attributes every LogRecord has; anything else on a record came from `extra=` and is logged.

@@ -10,7 +10,15 @@ from collections.abc import Callable
 
 from fastapi import APIRouter, FastAPI
 
+from server import dashboard
 from server.api import health, kbs, points, types
+from server.observability import install_observability
 
-ROUTERS: list[APIRouter] = [health.router, kbs.router, types.router, points.router]
-INSTALLERS: list[Callable[[FastAPI], None]] = []
+ROUTERS: list[APIRouter] = [
+    health.router,
+    kbs.router,
+    types.router,
+    points.router,
+    dashboard.router,
+]
+INSTALLERS: list[Callable[[FastAPI], None]] = [install_observability]

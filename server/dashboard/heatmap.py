@@ -9,7 +9,9 @@ combination of the categorical choices.
 
 from __future__ import annotations
 
+import functools
 import itertools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
@@ -20,7 +22,8 @@ Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]
 
 MAX_PANELS = 12
-_CELL = 9.0
+_PANEL_PX = 180.0  # a 2-d panel's side
+_STRIP_PX = 40.0  # the height of a 1-d strip, the side of a choice-only cell
 _PAD_LEFT = 46.0
 _PAD_TOP = 30.0
 _PAD_BOTTOM = 34.0
@@ -62,17 +65,20 @@ def panels_of(space: dict[str, CategoricalDomain | ContinuousDomain]) -> list[di
 
 def grid_points(
     space: dict[str, CategoricalDomain | ContinuousDomain],
-    dx: Dim,
+    dx: Dim | None,
     dy: Dim | None,
     panel: dict[str, str],
     n: int,
 ) -> list[dict[str, Value]]:
-    """n x n decision values (row-major, y from high to low so that rows draw top-down)."""
+    """n x n decision values (row-major, y from high to low so that rows draw top-down); one
+    value when there is no continuous dimension at all."""
     mids = {
         lab: [(lo + hi) / 2.0 for lo, hi in zip(d.low, d.high, strict=True)]
         for lab, d in space.items()
         if isinstance(d, ContinuousDomain)
     }
+    if dx is None:
+        return [{**mids, **panel}]
     xs = [dx.low + (dx.high - dx.low) * (i + 0.5) / n for i in range(n)]
     rows = 1 if dy is None else n
     ys = [0.0] if dy is None else [dy.high - (dy.high - dy.low) * (j + 0.5) / n for j in range(n)]
@@ -87,12 +93,26 @@ def grid_points(
     return points
 
 
-def _colour(p: float) -> str:
-    """Red (infeasible) through yellow to green (feasible), matplotlib's RdYlGn."""
+NO_MODEL_COLOUR = "#e5e7eb"
+
+
+@functools.cache
+def _palette() -> tuple[str, ...]:
+    """101 colours of matplotlib's RdYlGn, red (infeasible) through yellow to green (feasible)."""
     from matplotlib import colormaps
 
-    r, g, b, _ = colormaps["RdYlGn"](min(max(p, 0.0), 1.0))
-    return f"#{round(r * 255):02x}{round(g * 255):02x}{round(b * 255):02x}"
+    cmap = colormaps["RdYlGn"]
+    return tuple(
+        "#{:02x}{:02x}{:02x}".format(*(round(c * 255) for c in cmap(k / 100)[:3]))
+        for k in range(101)
+    )
+
+
+def _colour(p: float) -> str:
+    """The palette's colour for a probability (to 0.01); grey for no prediction (NaN)."""
+    if math.isnan(p):
+        return NO_MODEL_COLOUR
+    return _palette()[round(min(max(p, 0.0), 1.0) * 100)]
 
 
 def _fmt(v: float) -> str:
@@ -101,22 +121,28 @@ def _fmt(v: float) -> str:
 
 def render_heatmap_svg(
     space: dict[str, CategoricalDomain | ContinuousDomain],
-    dx: Dim,
+    dx: Dim | None,
     dy: Dim | None,
-    predict: Predict,
+    predict: Predict | None,
     observed: Sequence[tuple[dict[str, Value], bool]] = (),
     n: int = 20,
 ) -> str:
-    """Panels side by side (wrapping after four), one predict call for all of them."""
+    """Panels side by side (wrapping after four), one predict call for all of them. With no
+    `predict` (no surrogate yet) the cells are grey and only the stored points show."""
     panels = panels_of(space)
+    if dx is None:
+        n = 1
     rows = 1 if dy is None else n
     per_panel = n * rows
     queries = [p for panel in panels for p in grid_points(space, dx, dy, panel, n)]
-    probs = predict(queries)
+    probs = predict(queries) if predict is not None else [math.nan] * len(queries)
     if len(probs) != len(queries):
         raise ValueError("predict answered a different number of probabilities")
-    panel_w = _PAD_LEFT + n * _CELL + _PANEL_GAP
-    panel_h = _PAD_TOP + rows * _CELL + _PAD_BOTTOM
+    w = _PANEL_PX if dx is not None else _STRIP_PX
+    h = _PANEL_PX if dy is not None else _STRIP_PX
+    cell_w, cell_h = w / n, h / rows
+    panel_w = _PAD_LEFT + w + _PANEL_GAP
+    panel_h = _PAD_TOP + h + _PAD_BOTTOM
     cols = min(len(panels), 4)
     width = cols * panel_w + 10
     height = ((len(panels) + cols - 1) // cols) * panel_h + 28
@@ -137,29 +163,27 @@ def render_heatmap_svg(
         chunk = probs[k * per_panel : (k + 1) * per_panel]
         for idx, p in enumerate(chunk):
             j, i = divmod(idx, n)
+            tip = "no surrogate yet" if math.isnan(p) else f"p={p:.2f}"
             out.append(
-                f'<rect x="{ox + i * _CELL:.1f}" y="{oy + j * _CELL:.1f}" width="{_CELL}" '
-                f'height="{_CELL}" fill="{_colour(p)}"><title>p={p:.2f}</title></rect>'
+                f'<rect x="{ox + i * cell_w:.2f}" y="{oy + j * cell_h:.2f}" '
+                f'width="{cell_w + 0.3:.2f}" height="{cell_h + 0.3:.2f}" fill="{_colour(p)}">'
+                f"<title>{tip}</title></rect>"
             )
-        out.append(_axes(ox, oy, n, rows, dx, dy))
-        out.append(_observed_marks(ox, oy, n, rows, dx, dy, panel, observed))
+        if dx is not None:
+            out.append(_axes(ox, oy, w, h, dx, dy))
+            out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed))
         out.append("</g>")
-    legend_y = height - 16
+    swatches = "".join(f'<tspan fill="{_colour(p / 10)}">■</tspan>' for p in range(11))
     out.append(
-        f'<text x="10" y="{legend_y:.0f}" font-size="11" fill="#374151">'
-        f"P(feasible): 0 {_legend_swatches(legend_y)} 1 · dots: stored points "
-        "(green feasible, red infeasible) · other dimensions at mid-range</text>"
+        f'<text x="10" y="{height - 12:.0f}" font-size="11" fill="#374151">'
+        f"P(feasible): 0 {swatches} 1 · dots: stored points (green feasible, red infeasible)"
+        " · other dimensions at mid-range</text>"
     )
     out.append("</svg>")
     return "".join(out)
 
 
-def _legend_swatches(_y: float) -> str:
-    return "".join(f'<tspan fill="{_colour(p / 10)}">■</tspan>' for p in range(11))
-
-
-def _axes(ox: float, oy: float, n: int, rows: int, dx: Dim, dy: Dim | None) -> str:
-    w, h = n * _CELL, rows * _CELL
+def _axes(ox: float, oy: float, w: float, h: float, dx: Dim, dy: Dim | None) -> str:
     parts = [
         f'<rect x="{ox:.1f}" y="{oy:.1f}" width="{w:.1f}" height="{h:.1f}" fill="none" '
         'stroke="#374151" stroke-width="0.8"/>',
@@ -184,14 +208,13 @@ def _axes(ox: float, oy: float, n: int, rows: int, dx: Dim, dy: Dim | None) -> s
 def _observed_marks(
     ox: float,
     oy: float,
-    n: int,
-    rows: int,
+    w: float,
+    h: float,
     dx: Dim,
     dy: Dim | None,
     panel: dict[str, str],
     observed: Sequence[tuple[dict[str, Value], bool]],
 ) -> str:
-    w, h = n * _CELL, rows * _CELL
     marks: list[str] = []
     for x, feasible in observed:
         if any(x.get(lab) != choice for lab, choice in panel.items()):

@@ -1,0 +1,5 @@
+"""The inspection dashboard: HTML at `/` and `/ui/...`, served by the service itself."""
+
+from server.dashboard.routes import router
+
+__all__ = ["router"]

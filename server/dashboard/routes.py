@@ -1,0 +1,180 @@
+"""The dashboard's routes: HTML pages at `/` and `/ui/...`, the JSON they poll, and SVG images.
+
+Thin: data comes from `server.dashboard.views` (service functions), pictures from the SVG
+renderers; the pages re-render their changing parts server-side and the script swaps them in.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import HTMLResponse, JSONResponse, Response
+from fastapi.templating import Jinja2Templates
+from markupsafe import Markup
+
+from server.dashboard import views
+from server.dashboard.graph_svg import render_svg
+from server.dashboard.heatmap import Predict, continuous_dims, render_heatmap_svg
+from server.errors import NotFound
+from server.services import types
+
+HERE = Path(__file__).parent
+STATIC = {
+    "dashboard.js": "text/javascript",
+    "dashboard.css": "text/css",
+}
+SVG = "image/svg+xml"
+
+templates = Jinja2Templates(directory=HERE / "templates")
+router = APIRouter(include_in_schema=False)
+
+DimName = Annotated[str | None, Query(max_length=200)]
+GridSize = Annotated[int, Query(ge=4, le=40)]
+
+
+def _fmt_value(value: Any) -> str:
+    if isinstance(value, list):
+        return "[" + ", ".join(f"{v:.3g}" for v in value) + "]"
+    return str(value)
+
+
+def _fmt_ratio(value: float | None) -> str:
+    return "" if value is None else f"{100 * value:.0f}%"
+
+
+templates.env.filters["value"] = _fmt_value
+templates.env.filters["ratio"] = _fmt_ratio
+
+
+def _fragments(name: str, **context: Any) -> dict[str, str]:
+    """Render every macro of `templates/name` whose name ends in `_rows` or `_panel`, keyed by
+    the element id it fills (the macro name with `_` as `-`)."""
+    module = templates.env.get_template(name).make_module(context)
+    return {
+        macro.replace("_", "-"): str(getattr(module, macro)())
+        for macro in dir(module)
+        if macro.endswith(("_rows", "_panel"))
+    }
+
+
+def _state(request: Request) -> tuple[Any, Any]:
+    return request.app.state.store, request.app.state.hooks
+
+
+def _not_found(request: Request, exc: NotFound) -> HTMLResponse:
+    return templates.TemplateResponse(
+        request, "error.html", {"message": exc.detail}, status_code=404
+    )
+
+
+def predictor_for(request: Request, kb: str, type_id: str) -> Predict | None:
+    """The surrogate engine's in-process predict for one type, if the engine is installed."""
+    predict = getattr(request.app.state, "predict", None)
+    if predict is None:
+        return None
+
+    def run(xs: list[dict[str, Any]]) -> list[float]:
+        return list(predict(kb, type_id, xs))
+
+    return run
+
+
+@router.get("/", response_class=HTMLResponse)
+def index(request: Request, kb: Annotated[str | None, Query(max_length=64)] = None) -> Response:
+    store, _ = _state(request)
+    try:
+        data = views.overview(store, kb)
+    except NotFound as exc:
+        return _not_found(request, exc)
+    return templates.TemplateResponse(
+        request, "index.html", {**data, "fragments": _fragments("_overview.html", **data)}
+    )
+
+
+@router.get("/ui/api/overview")
+def overview_json(kb: Annotated[str | None, Query(max_length=64)] = None, *, request: Request):
+    store, _ = _state(request)
+    data = views.overview(store, kb)
+    return JSONResponse({**data, "fragments": _fragments("_overview.html", **data)})
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}", response_class=HTMLResponse)
+def type_page(
+    request: Request,
+    kb: str,
+    type_id: str,
+    x: DimName = None,
+    y: DimName = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    cursor: Annotated[str | None, Query(max_length=32)] = None,
+) -> Response:
+    store, hooks = _state(request)
+    try:
+        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, limit=limit, cursor=cursor)
+    except NotFound as exc:
+        return _not_found(request, exc)
+    # Both SVGs are ours, every text in them escaped by the renderers.
+    graph = Markup(render_svg(data["detail"].graph))
+    heatmap = Markup(_heatmap(request, kb, type_id, data["x_dim"], data["y_dim"], 20))
+    context = {
+        **data,
+        "graph_svg": graph,
+        "heatmap_svg": heatmap,
+        "heatmap_key": _heatmap_key(data),
+        "fragments": _fragments("_type.html", **data),
+    }
+    return templates.TemplateResponse(request, "type.html", context)
+
+
+@router.get("/ui/api/kbs/{kb}/types/{type_id}")
+def type_json(request: Request, kb: str, type_id: str) -> JSONResponse:
+    store, hooks = _state(request)
+    data = views.type_status(store, hooks, kb, type_id)
+    return JSONResponse(
+        {
+            **data,
+            "heatmap_key": _heatmap_key(data),
+            "fragments": _fragments("_type.html", **data),
+        }
+    )
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
+def graph_svg(request: Request, kb: str, type_id: str) -> Response:
+    store, _ = _state(request)
+    return Response(render_svg(types.get_type(store, kb, type_id).graph), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/heatmap.svg")
+def heatmap_svg(
+    request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
+) -> Response:
+    return Response(_heatmap(request, kb, type_id, x, y, n), media_type=SVG)
+
+
+@router.get("/ui/static/{name}")
+def static(name: str) -> Response:
+    if name not in STATIC:
+        raise NotFound(f"no static file {name!r}")
+    return Response(
+        (HERE / "static" / name).read_bytes(),
+        media_type=STATIC[name],
+        headers={"Cache-Control": "max-age=60"},
+    )
+
+
+def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
+    store, _ = _state(request)
+    detail = types.get_type(store, kb, type_id)
+    dx, dy = views.choose_dims(continuous_dims(detail.space), x, y)
+    observed = views.observed_points(store, kb, type_id)
+    predict = predictor_for(request, kb, type_id)
+    return render_heatmap_svg(detail.space, dx, dy, predict, observed, n=n)
+
+
+def _heatmap_key(data: dict[str, Any]) -> str:
+    """Changes whenever the heat map would: new points or a new surrogate version."""
+    surrogate = data.get("surrogate") or {}
+    return f"{data['n_points']}:{surrogate.get('version')}"

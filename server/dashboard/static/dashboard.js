@@ -1,0 +1,56 @@
+// Keeps a dashboard page current without a reload: polls the page's JSON endpoint
+// (data-poll on <main>), swaps in the server-rendered fragments it carries, and redraws the
+// heat map when new points or a new surrogate version arrive.
+(function () {
+  "use strict";
+  const main = document.querySelector("main[data-poll]");
+  const live = document.getElementById("live");
+  if (!main) {
+    if (live) live.textContent = "";
+    return;
+  }
+  const every = 3000;
+  const heatmapEvery = 10000;
+  let heatmapAt = 0;
+
+  function setLive(text, ok) {
+    if (!live) return;
+    live.textContent = text;
+    live.classList.toggle("stale", !ok);
+  }
+
+  async function refreshHeatmap(key) {
+    const box = document.getElementById("heatmap");
+    if (!box || key === undefined || box.dataset.key === key) return;
+    if (Date.now() - heatmapAt < heatmapEvery) return;
+    heatmapAt = Date.now();
+    const response = await fetch(box.dataset.src, { cache: "no-store" });
+    if (!response.ok) return;
+    box.innerHTML = await response.text();
+    box.dataset.key = key;
+  }
+
+  async function tick() {
+    try {
+      const response = await fetch(main.dataset.poll, {
+        cache: "no-store",
+        headers: { Accept: "application/json" },
+      });
+      if (!response.ok) throw new Error("HTTP " + response.status);
+      const data = await response.json();
+      for (const [id, html] of Object.entries(data.fragments || {})) {
+        const element = document.getElementById(id);
+        if (element) element.innerHTML = html;
+      }
+      await refreshHeatmap(data.heatmap_key);
+      setLive("live · " + new Date().toLocaleTimeString(), true);
+    } catch (error) {
+      setLive("cannot reach the service (" + error.message + "), retrying", false);
+    } finally {
+      window.setTimeout(tick, every);
+    }
+  }
+
+  setLive("live", true);
+  window.setTimeout(tick, every);
+})();
