@@ -17,7 +17,7 @@ from cpkb.bench.plots import write_plots
 from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
-from cpkb.bench.scenarios import PREDECESSORS, TRANSFER_METHOD, expand
+from cpkb.bench.scenarios import TRANSFER_METHOD, expand, predecessors
 from cpkb.bench.stats import HEADERS, summarize, table_rows, write_summary
 
 
@@ -58,6 +58,9 @@ def known_tasks() -> set[str]:
     return {task.name for task in list_tasks()}
 
 
+ANALYTIC_PREFIX = "analytic:"
+
+
 def _is_task_file(task: str) -> bool:
     return "/" in task or task.endswith((".yaml", ".yml"))
 
@@ -70,11 +73,17 @@ def check_request(settings: BenchSettings) -> None:
         raise ValueError(f"unknown method {unknown_m[0]!r} (known: {', '.join(sorted(methods))})")
     needed = set(settings.tasks)
     if TRANSFER_METHOD in settings.methods:
-        needed |= {p for t in settings.tasks for p in PREDECESSORS.get(t, ())}
+        needed |= {p for t in settings.tasks for p in predecessors(t)}
     missing_files = [t for t in needed if _is_task_file(t) and not Path(t).is_file()]
     if missing_files:
         raise ValueError(f"no such task file: {missing_files[0]}")
-    unknown_t = sorted(t for t in needed - tasks if not _is_task_file(t))
+    for task in sorted(t for t in needed if t.startswith(ANALYTIC_PREFIX)):
+        from planner.search.analytic import analytic_world
+
+        analytic_world(task.removeprefix(ANALYTIC_PREFIX))  # a ValueError names the known ones
+    unknown_t = sorted(
+        t for t in needed - tasks if not _is_task_file(t) and not t.startswith(ANALYTIC_PREFIX)
+    )
     if unknown_t:
         raise ValueError(f"unknown task {unknown_t[0]!r} (known: {', '.join(sorted(tasks))})")
 
