@@ -70,7 +70,13 @@ class KnowledgeStats:
     kb_s: float = 0.0
     errors: int = 0
     prematched: int = 0
-    events: list[str] = field(default_factory=list)
+    events: dict[str, int] = field(default_factory=dict)
+
+    def event(self, message: str) -> None:
+        """Count a problem; distinct messages are kept (a few), repeats only counted."""
+        self.errors += 1
+        if message in self.events or len(self.events) < 10:
+            self.events[message] = self.events.get(message, 0) + 1
 
 
 class KnowledgeSession:
@@ -131,8 +137,7 @@ class KnowledgeSession:
         try:
             results = self.client.match_types(self.kb, graphs)
         except Exception as exc:  # a knowledge-base outage must not stop the search
-            self.stats.errors += 1
-            self.stats.events.append(f"match failed: {exc}")
+            self.stats.event(f"match failed: {exc}")
             return 0
         finally:
             self.stats.kb_s += time.perf_counter() - started
@@ -232,8 +237,7 @@ class KnowledgeSession:
         try:
             answer = self.client.suggest(self.kb, request)
         except Exception as exc:  # fall back to space filling rather than stop the search
-            self.stats.errors += 1
-            self.stats.events.append(f"suggest failed: {exc}")
+            self.stats.event(f"suggest failed: {exc}")
             return None
         finally:
             self.stats.kb_s += time.perf_counter() - started

@@ -32,6 +32,7 @@ MAX_CATEGORICAL_ASKS = 8
 
 CONSTRAINT = "transition"
 
+
 def _distributions(domain: CategoricalDomain | ContinuousDomain) -> dict[str, BaseDistribution]:
     if isinstance(domain, CategoricalDomain):
         return {"choice": CategoricalDistribution(list(domain.choices))}

@@ -1,0 +1,115 @@
+"""`cpkb plan` (one binding search) and `cpkb demo` (the README's main job)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from cpkb.cli import CliError
+
+METHODS = ("quasi-random", "mcts-bo", "cp-bo")
+
+
+def register(subparsers: Any) -> None:
+    plan = subparsers.add_parser("plan", help="search bindings for one task")
+    plan.add_argument("--task", required=True, help="a task name (see `cpkb tasks`) or task file")
+    plan.add_argument("--method", default="cp-bo", help=f"{' | '.join(METHODS)} (default cp-bo)")
+    plan.add_argument("--seed", type=int, default=0, help="the run's seed (default 0)")
+    plan.add_argument("--max-rollouts", type=int, default=2000, help="rollout budget (2000)")
+    plan.add_argument(
+        "--full-budget",
+        action="store_true",
+        help="keep searching after the first feasible binding list (fills the knowledge base)",
+    )
+    plan.add_argument("--kb-url", help="knowledge-base service URL (default: an embedded one)")
+    plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")
+    plan.add_argument("--token", help="access token (default: CPKB_TOKEN)")
+    plan.add_argument("--gui", action="store_true", help="show the PyBullet GUI")
+    plan.add_argument("--json", action="store_true", help="print the result as JSON (last line)")
+    plan.add_argument("--quiet", action="store_true", help="no progress display")
+    plan.set_defaults(handler=_plan)
+
+    demo = subparsers.add_parser(
+        "demo", help="deskP then desk with cp-bo on one knowledge base, beside quasi-random"
+    )
+    demo.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
+    demo.add_argument("--predecessor-rollouts", type=int, default=30, help="deskP budget (30)")
+    demo.add_argument("--db", metavar="URL", help="database URL (default: the embedded default)")
+    demo.set_defaults(handler=_demo)
+
+
+def _run(args: argparse.Namespace, **kwargs: Any) -> Any:
+    """`run_plan` with user mistakes and an unreachable service turned into CLI errors."""
+    import httpx
+
+    from planner.run import run_plan
+
+    try:
+        return run_plan(**kwargs)
+    except (ValueError, KeyError, FileNotFoundError) as exc:
+        raise CliError(str(exc).strip("'\"")) from exc
+    except httpx.HTTPError as exc:
+        raise CliError(f"knowledge base unreachable: {exc}") from exc
+
+
+def _plan(args: argparse.Namespace) -> int:
+    if args.max_rollouts < 1:
+        raise CliError("--max-rollouts must be at least 1")
+    token = args.token or os.environ.get("CPKB_TOKEN")
+    options = dict(
+        task=args.task,
+        method=args.method,
+        seed=args.seed,
+        max_rollouts=args.max_rollouts,
+        kb_url=args.kb_url,
+        kb=args.kb,
+        token=token,
+        stop_at_first=not args.full_budget,
+        gui=args.gui,
+    )
+    if args.json or args.quiet:
+        result = _run(args, **options)
+    else:
+        from planner.display import live_progress
+
+        label = (
+            f"{Path(args.task).stem if args.task.endswith('.yaml') else args.task} {args.method}"
+        )
+        with live_progress(label, args.max_rollouts) as progress:
+            result = _run(args, progress=progress, **options)
+    if args.json:
+        print(json.dumps(result.to_json()))
+    else:
+        _summary(result)
+    return 0 if result.solved else 1
+
+
+def _summary(result: Any) -> None:
+    from rich.console import Console
+
+    console = Console()
+    verdict = "[green]solved[/]" if result.solved else "[red]not solved[/]"
+    console.print(
+        f"{result.task} with {result.method} (seed {result.seed}): {verdict} after "
+        f"[bold]{result.rollouts}[/] rollouts in {result.wall_s:.2f} s "
+        f"(simulation {result.sim_s:.2f} s, knowledge base {result.kb_s:.2f} s)"
+    )
+    if result.kb is not None:
+        console.print(
+            f"knowledge base '{result.kb}': {result.types_activated} types activated from earlier "
+            f"runs with {result.points_activated} points; {result.types_active} types active; "
+            f"{result.points_posted} points posted; {result.suggestions} suggestions"
+        )
+    if result.bindings:
+        console.print("bindings: " + json.dumps(result.bindings))
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from planner.demo import run_demo
+
+    if args.seeds < 1 or args.predecessor_rollouts < 1:
+        raise CliError("--seeds and --predecessor-rollouts must be at least 1")
+    return run_demo(seeds=args.seeds, predecessor_rollouts=args.predecessor_rollouts, db=args.db)

@@ -1,0 +1,101 @@
+"""The knowledge base in the loop, against a real service: points, labels, activation, transfer."""
+
+from __future__ import annotations
+
+import pytest
+
+from client import CpkbClient
+from planner.failures import failure_graph
+from planner.knowledge import KnowledgeSession
+from planner.run import run_plan
+from planner.search import PWUCT
+from planner.search.analytic import analytic_world
+from planner.search.samplers.quasi_random import QuasiRandomSampler
+
+
+def blocked_grasp_type(client: CpkbClient, kb: str, task: str) -> str:
+    world = analytic_world(task)
+    outcome = world.transition(0, {"#dir1": "back"}, None)
+    fg = failure_graph(world.skeleton, 0, outcome.failed)
+    return client.match_types(kb, [fg.graph])[0].type_id
+
+
+def test_the_blocked_grasp_type_is_stable_across_runs_and_tasks(live_kb):
+    with CpkbClient(live_kb.url) as client:
+        ids = {blocked_grasp_type(client, live_kb.name, "desk") for _ in range(2)}
+        assert len(ids) == 1
+        # deskP starts elsewhere (poseP): its blocked grasp is a different constraint...
+        assert blocked_grasp_type(client, live_kb.name, "deskP") not in ids
+        # ...while the shelf failure is one type in both tasks.
+        shelf = []
+        for task in ("deskP", "desk"):
+            world = analytic_world(task)
+            outcome = world.transition(1, {"#dir1": "top", "#pose12": [0.0, 1.0, 0.5]}, None)
+            shelf.append(failure_graph(world.skeleton, 1, outcome.failed).graph)
+        assert len({r.type_id for r in client.match_types(live_kb.name, shelf)}) == 1
+
+
+def session_search(live_kb, task: str, seed: int, rollouts: int) -> KnowledgeSession:
+    client = CpkbClient(live_kb.url)
+    world = analytic_world(task)
+    session = KnowledgeSession(client, live_kb.name, world, background=False)
+    session.prematch()
+    PWUCT(world, QuasiRandomSampler(), seed=seed, observer=session).run(
+        rollouts, stop_at_first=False
+    )
+    session.close()
+    return session
+
+
+def test_every_evaluation_of_an_active_check_is_labelled(live_kb):
+    session = session_search(live_kb, "desk", seed=0, rollouts=60)
+    with CpkbClient(live_kb.url) as client:
+        types = {t.type_id: t for t in client.list_types(live_kb.name)}
+        assert sum(t.n_points for t in types.values()) == session.points_posted > 0
+        shelf = next(t for t in types.values() if "shelf" in t.context)
+        assert set(shelf.decisions) == {"#dir", "#pose"}
+        # Placements that reached the shelf check and passed are feasible points of its type.
+        assert 0 < shelf.n_infeasible < shelf.n_points
+        points = list(client.iter_points(live_kb.name, shelf.type_id))
+        for point in points:
+            x, y, _ = point.x["#pose"]
+            assert point.feasible == ((x - 0.85) ** 2 + (y - 0.2) ** 2 < 0.01)
+            assert point.source is not None and point.source["task"] == "desk"
+    assert session.stats.types_activated == 0  # nothing existed before this run
+
+
+def test_a_later_task_activates_the_types_before_any_failure(live_kb):
+    first = session_search(live_kb, "deskP", seed=1, rollouts=30)
+    world = analytic_world("desk")
+    with CpkbClient(live_kb.url) as client:
+        session = KnowledgeSession(client, live_kb.name, world)
+        session.prematch()
+        types = client.list_types(live_kb.name)
+        assert sum(t.n_points for t in types) == first.points_posted
+        # deskP's shelf type recurs in desk; its blocked grasp at poseP does not.
+        shelf = [t for t in types if "shelf" in t.context]
+        assert session.stats.types_activated == len(shelf) == 1
+        assert session.stats.points_activated == shelf[0].n_points
+        constraints = session.constraints_at("#pose12", {"#dir1": "front"})
+        assert [set(c.bind.values()) for c in constraints] == [{"#dir1", "#pose12"}]
+        assert session.constraints_at("#dir1", {}) == []
+        session.close()
+
+
+def test_run_plan_reports_what_the_knowledge_base_did(live_kb):
+    common = {"kb_url": live_kb.url, "kb": live_kb.name}
+    before = run_plan("analytic:deskP", "cp-bo", 3, max_rollouts=30, stop_at_first=False, **common)
+    assert before.points_posted > 0 and before.types_activated == 0
+    after = run_plan("analytic:desk", "cp-bo", 3, **common)
+    assert after.solved
+    assert after.types_activated >= 1 and after.points_activated >= before.points_posted // 2
+    report = after.to_json()
+    for key in ("task", "method", "seed", "solved", "rollouts", "wall_s", "bindings", "kb_s"):
+        assert key in report
+
+
+def test_an_unreachable_knowledge_base_is_a_clear_error():
+    from client import ServiceUnavailable
+
+    with pytest.raises(ServiceUnavailable):
+        run_plan("analytic:desk", "cp-bo", 0, kb_url="http://127.0.0.1:9", max_rollouts=5)
