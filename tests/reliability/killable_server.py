@@ -1,4 +1,5 @@
-"""A real `cpkb serve` child process on a loopback port that tests can kill and restart."""
+"""A real `cpkb serve` child process on a loopback port that tests can kill and restart, and
+read-backs of what it stored."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import httpx
@@ -21,7 +23,7 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-class LiveServer:
+class KillableServer:
     """`cpkb serve --db URL` on a fixed port, so that a restart comes back at the same URL."""
 
     def __init__(self, db_url: str, log_dir: Path, env: dict[str, str] | None = None) -> None:
@@ -71,3 +73,25 @@ class LiveServer:
     def log_tail(self, n: int = 3000) -> str:
         path = self.log_dir / f"server-{self.starts}.log"
         return path.read_text(errors="replace")[-n:] if path.exists() else ""
+
+
+def stored_keys(base_url: str, kb: str = "default") -> Counter[str | None]:
+    """How many times each idempotency key is stored in `kb`, over every type's points."""
+    keys: Counter[str | None] = Counter()
+    with httpx.Client(base_url=base_url, timeout=30) as http:
+        for t in http.get(f"/v1/kbs/{kb}/types").raise_for_status().json():
+            cursor = None
+            while True:
+                params = {"limit": 1000} | ({"cursor": cursor} if cursor else {})
+                page = http.get(f"/v1/kbs/{kb}/types/{t['type_id']}/points", params=params)
+                body = page.raise_for_status().json()
+                keys.update(p["key"] for p in body["points"])
+                cursor = body.get("next_cursor")
+                if not cursor:
+                    break
+    return keys
+
+
+def kb_point_count(base_url: str, kb: str = "default") -> int:
+    kbs = httpx.get(f"{base_url}/v1/kbs", timeout=30).raise_for_status().json()
+    return next(k["n_points"] for k in kbs if k["name"] == kb)
