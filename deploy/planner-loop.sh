@@ -15,7 +15,7 @@ i=0
 while [ "$i" -lt "$runs" ]; do
     for task in $(echo "$tasks" | tr ',' ' '); do
         seed=$((block + i))
-        cpkb plan --task "$task" --method "$method" --seed "$seed" --kb-url "$kb_url" --kb "$kb" --json
+        cpkb plan --task "$task" --method "$method" --seed "$seed" --kb-url "$kb_url" --kb "$kb" --json --quiet
     done
     i=$((i + 1))
 done

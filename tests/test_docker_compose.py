@@ -167,3 +167,14 @@ def test_docker_compose_accepts_the_file() -> None:
         env={"CPKB_TOKEN": "example-token", "PATH": "/usr/bin:/bin:/usr/local/bin"},
     )
     assert result.returncode == 0, result.stderr
+
+
+def test_the_workers_run_tasks_that_ship(services: dict[str, Any]) -> None:
+    from planner.tasks import list_tasks
+
+    shipped = {task.name for task in list_tasks()}
+    planned = {inv[inv.index("--task") + 1] for inv in _planner_invocations(services["planner"])}
+    bench = services["bench"]["command"]
+    benched = set(bench[bench.index("--tasks") + 1].split(","))
+    assert planned and benched
+    assert planned | benched <= shipped

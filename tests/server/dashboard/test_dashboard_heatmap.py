@@ -1,0 +1,101 @@
+"""The feasibility picture: the grid it asks the surrogate about, and what it draws."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+from pydantic import TypeAdapter
+
+from client.models import Domain
+from server.dashboard.heatmap import (
+    NO_MODEL_COLOUR,
+    continuous_dims,
+    grid_points,
+    panels_of,
+    render_heatmap_svg,
+)
+
+SVG_NS = "{http://www.w3.org/2000/svg}"
+SPACE = TypeAdapter(dict[str, Domain]).validate_python(
+    {
+        "#dir": {"kind": "categorical", "choices": ["front", "top"]},
+        "#pose": {"kind": "continuous", "low": [0.0, 0.0, -3.0], "high": [1.0, 2.0, 3.0]},
+    }
+)
+
+
+def _right_half_feasible(xs: list[dict]) -> list[float]:
+    """A stand-in surrogate with a known answer: feasible where #pose[0] > 0.5, top only."""
+    return [(1.0 if x["#pose"][0] > 0.5 else 0.0) if x["#dir"] == "top" else 0.25 for x in xs]
+
+
+def test_dimensions_and_panels_come_from_the_space() -> None:
+    dims = continuous_dims(SPACE)
+    assert [d.name for d in dims] == ["#pose[0]", "#pose[1]", "#pose[2]"]
+    assert (dims[1].low, dims[1].high) == (0.0, 2.0)
+    assert panels_of(SPACE) == [{"#dir": "front"}, {"#dir": "top"}]
+
+
+def test_grid_spans_the_chosen_dimensions_and_holds_the_rest_at_mid_range() -> None:
+    dx, _, dz = continuous_dims(SPACE)
+    pts = grid_points(SPACE, dx, dz, {"#dir": "top"}, 4)
+    assert len(pts) == 16
+    assert {p["#dir"] for p in pts} == {"top"}
+    assert {p["#pose"][1] for p in pts} == {1.0}  # #pose[1] held at its middle
+    xs = sorted({p["#pose"][0] for p in pts})
+    assert xs == [0.125, 0.375, 0.625, 0.875]
+    # rows go from high y to low y, so that the picture reads like a plot
+    assert pts[0]["#pose"][2] > pts[-1]["#pose"][2]
+
+
+def test_cells_are_coloured_by_the_prediction_and_points_are_marked() -> None:
+    dx, dy, _ = continuous_dims(SPACE)
+    observed = [
+        ({"#dir": "top", "#pose": [0.9, 1.0, 0.0]}, True),
+        ({"#dir": "front", "#pose": [0.1, 0.5, 0.0]}, False),
+        ({"#dir": "front", "#pose": [0.2, 0.7, 0.0]}, False),
+    ]
+    svg = render_heatmap_svg(SPACE, dx, dy, _right_half_feasible, observed, n=10)
+    root = ET.fromstring(svg)
+    panels = {g.get("data-panel"): g for g in root.iter(f"{SVG_NS}g")}
+    assert set(panels) == {"#dir=front", "#dir=top"}
+    top_cells = [
+        r
+        for r in panels["#dir=top"].findall(f"{SVG_NS}rect")
+        if r.find(f"{SVG_NS}title") is not None
+    ]
+    assert len(top_cells) == 100
+    middle = min(float(r.get("x")) for r in top_cells) + 90.0  # panels are 180 px wide
+    left = {r.get("fill") for r in top_cells if float(r.get("x")) < middle}
+    right = {r.get("fill") for r in top_cells if float(r.get("x")) >= middle}
+    assert len(left) == 1 and len(right) == 1 and left != right
+    assert len(panels["#dir=top"].findall(f"{SVG_NS}circle")) == 1
+    assert len(panels["#dir=front"].findall(f"{SVG_NS}circle")) == 2
+
+
+def test_without_a_surrogate_the_cells_are_grey_and_the_points_still_show() -> None:
+    dx, dy, _ = continuous_dims(SPACE)
+    observed = [({"#dir": "top", "#pose": [0.9, 1.0, 0.0]}, True)]
+    root = ET.fromstring(render_heatmap_svg(SPACE, dx, dy, None, observed, n=6))
+    cells = [r for r in root.iter(f"{SVG_NS}rect") if r.find(f"{SVG_NS}title") is not None]
+    assert {r.get("fill") for r in cells} == {NO_MODEL_COLOUR}
+    assert {r.find(f"{SVG_NS}title").text for r in cells} == {"no surrogate yet"}
+    assert len(list(root.iter(f"{SVG_NS}circle"))) == 1
+
+
+def test_a_space_without_continuous_dimensions_gets_one_cell_per_choice() -> None:
+    space = TypeAdapter(dict[str, Domain]).validate_python(
+        {"#dir": {"kind": "categorical", "choices": ["a", "b", "c"]}}
+    )
+    calls: list[int] = []
+
+    def predict(xs: list[dict]) -> list[float]:
+        calls.append(len(xs))
+        return [0.1 * (i + 1) for i in range(len(xs))]
+
+    root = ET.fromstring(render_heatmap_svg(space, None, None, predict))
+    assert calls == [3]
+    titles = [t.text for t in root.iter(f"{SVG_NS}title")]
+    assert titles == ["p=0.10", "p=0.20", "p=0.30"]
+    assert not math.isnan(float(titles[0][2:]))
