@@ -1,0 +1,277 @@
+"""The transition operators of a skeleton, executed in a `Scene`: Inv-kin, Plan-motion,
+Move-Pick, Move-Place. Each returns a `CheckResult` that says why it failed: the IK error,
+the bodies in collision (most often first, with the deepest penetration), or the planner's
+timeout. Cheap checks run before expensive ones: IK and its collision check before any
+motion planning."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from client.models import Value
+from planner.sim.geometry import Pose, derived_seed
+from planner.sim.grasps import (
+    Grasp,
+    GraspError,
+    carried_pose,
+    make_grasp,
+    rolled,
+    solve_ik,
+    tcp_target,
+)
+from planner.sim.motion import Checker, CollisionTally, check_segment, rrt_connect
+from planner.sim.scene import Scene
+from planner.skeleton import OperatorCall
+from planner.tasks.schema import PlannerSettings
+from planner.world import CheckResult, Culprit
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """A robot configuration produced by Inv-kin: the grasp config, its approach config
+    (0.1 m back along the approach axis), the grasp it makes and where the body then stands."""
+
+    q: tuple[float, ...]
+    pre: tuple[float, ...] | None = None
+    grasp: Grasp | None = None
+    body_pose: Pose | None = None
+    region: str | None = None
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Joint-space waypoints; consecutive ones are joined by checked straight segments."""
+
+    waypoints: tuple[tuple[float, ...], ...]
+    goal: ArmConfig
+    carrying: str | None
+
+
+@dataclass
+class Execution:
+    """The mutable state of one transition layer being executed."""
+
+    scene: Scene
+    settings: PlannerSettings
+    seed: int
+    bindings: Mapping[str, Value]
+    pose_sources: Mapping[str, tuple[str, str]]  # '#pose12' -> (body, region)
+    values: dict[str, object]
+    arm: tuple[float, ...]
+    held: Grasp | None
+    tally: CollisionTally = field(default_factory=CollisionTally)
+
+    def checker(self) -> Checker:
+        """Collisions of the arm at q, carrying the held body along."""
+        scene, held = self.scene, self.held
+
+        def hits(q: tuple[float, ...]) -> list[tuple[str, float]]:
+            scene.set_arm(q)
+            if held is not None:
+                scene.set_pose(held.body, carried_pose(scene, held))
+            contacts = scene.contacts(held.body if held is not None else None)
+            return [(c.other, c.depth) for c in contacts]
+
+        return hits
+
+    def settle(self) -> None:
+        """Put the arm (and the held body) back where the execution says they are."""
+        self.scene.set_arm(self.arm)
+        if self.held is not None:
+            self.scene.set_fingers(self.held.opening)
+            self.scene.set_pose(self.held.body, carried_pose(self.scene, self.held))
+
+    def culprits(self) -> tuple[Culprit, ...]:
+        found = []
+        for name, _, depth in self.tally.ranked():
+            pose = None
+            if name in self.scene.ids:
+                pos, orn = self.scene.pose(name)
+                pose = (*pos, *orn)
+            found.append(Culprit(body=name, depth=depth, pose=pose))
+        return tuple(found)
+
+    def collision_text(self) -> str:
+        return ", ".join(
+            f"{name} ({count}x, {depth * 1000:.1f} mm deep)"
+            for name, count, depth in self.tally.ranked()[:3]
+        )
+
+
+def _text(call: OperatorCall) -> str:
+    out = f" -> {', '.join(call.outputs)}" if call.outputs else ""
+    return f"{call.name}({', '.join(call.args)}){out}"
+
+
+def _fail(call: OperatorCall, ex: Execution, reason: str, **detail: float) -> CheckResult:
+    return CheckResult(call, False, f"{_text(call)}: {reason}", ex.culprits(), detail)
+
+
+def _body_pose(ex: Execution, body: str, pose_arg: str) -> tuple[Pose, str]:
+    if pose_arg.startswith("#"):
+        owner, region = ex.pose_sources[pose_arg]
+        seed = ex.bindings[pose_arg]
+        return ex.scene.region_pose(owner, region, seed), region  # type: ignore[arg-type]
+    named = ex.scene.task.workspace.poses[pose_arg]
+    return ex.scene.named_pose(pose_arg, body), named.region
+
+
+def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
+    body, pose_arg, grasp_arg = call.args
+    scene, s = ex.scene, ex.settings
+    body_pose, region = _body_pose(ex, body, pose_arg)
+    if ex.held is not None:
+        if ex.held.body != body:
+            return _fail(call, ex, f"the gripper holds {ex.held.body}, not {body}")
+        candidates = [ex.held]
+    else:
+        here = scene.pose(body)[0]
+        if math.dist(here, body_pose[0]) > 1e-4:
+            return _fail(call, ex, f"{body} is not at {pose_arg}")
+        direction = str(ex.bindings[grasp_arg]) if grasp_arg.startswith("#") else grasp_arg
+        try:
+            grasp = make_grasp(scene, body, direction, body_pose)
+        except GraspError as exc:
+            return _fail(call, ex, str(exc))
+        scene.set_fingers(grasp.opening)
+        # A side grasp can be made with the hand either way up.
+        candidates = [grasp] if direction == "top" else [grasp, rolled(grasp)]
+    check = ex.checker()
+    rng = np.random.default_rng(
+        derived_seed(ex.seed, _text(call), body_pose, candidates[0].direction)
+    )
+    options = dict(restarts=s.ik_restarts, iterations=s.ik_iterations, tolerance=s.ik_tolerance)
+    for grasp in candidates:
+        target = tcp_target(grasp, body_pose)
+        # First from the home configuration turned toward the target, then seeded restarts.
+        toward = list(scene.task.workspace.robot.home)
+        toward[0] = float(np.clip(math.atan2(target[0][1], target[0][0]), *scene.joint_range(0)))
+        found = solve_ik(
+            scene,
+            target,
+            rng,
+            collisions=check,
+            tally=ex.tally,
+            first_guess=tuple(toward),
+            **options,
+        )
+        if found.q is not None:
+            break
+    if found.q is None:
+        ex.settle()
+        if found.in_collision:
+            return _fail(call, ex, f"every IK solution collides with {ex.collision_text()}")
+        return _fail(
+            call,
+            ex,
+            f"no IK solution for the {grasp.direction} grasp of {body} within {s.ik_tolerance} m "
+            f"in {found.restarts} restarts (best error {found.position_error:.3f} m, "
+            f"{found.orientation_error:.2f} rad)",
+            position_error=found.position_error,
+            orientation_error=found.orientation_error,
+        )
+    approach = tcp_target(grasp, body_pose, s.approach)
+    pre = solve_ik(
+        scene, approach, rng, collisions=check, tally=ex.tally, first_guess=found.q, **options
+    )
+    ex.settle()
+    if pre.q is None:
+        if pre.in_collision:
+            what = f"collides with {ex.collision_text()}"
+        else:
+            what = f"is out of reach (best error {pre.position_error:.3f} m)"
+        return _fail(call, ex, f"the approach pose {s.approach} m back {what}")
+    ex.values[call.outputs[0]] = ArmConfig(found.q, pre.q, grasp, body_pose, region)
+    return CheckResult(call, True, detail={"ik_restarts": float(found.restarts + pre.restarts)})
+
+
+def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
+    start, goal = (ex.values[a] for a in call.args)
+    assert isinstance(start, ArmConfig) and isinstance(goal, ArmConfig)
+    s = ex.settings
+    if ex.held is None:
+        openings = [c.grasp.opening for c in (start, goal) if c.grasp is not None]
+        ex.scene.set_fingers(max(openings, default=ex.scene.fingers()))
+    check = ex.checker()
+    a = start.pre if start.pre is not None else start.q
+    b = goal.pre if goal.pre is not None else goal.q
+    if start.pre is not None and not check_segment(
+        start.q, a, check, s.motion_resolution, ex.tally
+    ):
+        ex.settle()
+        return _fail(
+            call, ex, f"the retreat from {call.args[0]} collides with {ex.collision_text()}"
+        )
+    seed = derived_seed(ex.seed, _text(call), a, b)
+    middle = rrt_connect(
+        a,
+        b,
+        check,
+        low=ex.scene.joint_low,
+        high=ex.scene.joint_high,
+        seed=seed,
+        timeout=s.motion_timeout,
+        resolution=s.motion_resolution,
+        tally=ex.tally,
+    )
+    if middle is None:
+        ex.settle()
+        hit = f"; states in collision with {ex.collision_text()}" if ex.tally.counts else ""
+        return _fail(
+            call,
+            ex,
+            f"RRT-Connect found no path within its {s.motion_timeout} s timeout{hit}",
+            timeout=s.motion_timeout,
+        )
+    if goal.pre is not None and not check_segment(b, goal.q, check, s.motion_resolution, ex.tally):
+        ex.settle()
+        return _fail(
+            call, ex, f"the approach to {call.args[1]} collides with {ex.collision_text()}"
+        )
+    ex.settle()
+    waypoints = (start.q, *middle, goal.q)
+    carrying = ex.held.body if ex.held is not None else None
+    ex.values[call.outputs[0]] = Trajectory(waypoints, goal, carrying)
+    return CheckResult(call, True, detail={"waypoints": float(len(waypoints))})
+
+
+def move_pick(call: OperatorCall, ex: Execution) -> CheckResult:
+    body, traj_var = call.args
+    traj = ex.values[traj_var]
+    assert isinstance(traj, Trajectory)
+    if ex.held is not None:
+        return _fail(call, ex, f"the gripper already holds {ex.held.body}")
+    grasp = traj.goal.grasp
+    if grasp is None or grasp.body != body:
+        return _fail(call, ex, f"{traj_var} does not end at a grasp of {body}")
+    ex.arm = traj.waypoints[-1]
+    ex.held = grasp
+    ex.settle()
+    return CheckResult(call, True)
+
+
+def move_place(call: OperatorCall, ex: Execution) -> CheckResult:
+    body, traj_var = call.args
+    traj = ex.values[traj_var]
+    assert isinstance(traj, Trajectory)
+    if ex.held is None or ex.held.body != body:
+        return _fail(call, ex, f"the gripper does not hold {body}")
+    ex.arm = traj.waypoints[-1]
+    ex.settle()
+    ex.held = None
+    region = traj.goal.region
+    if region is not None and not ex.scene.in_region(body, region):
+        return _fail(call, ex, f"{body} does not stand in {region}")
+    return CheckResult(call, True)
+
+
+OPERATORS = {
+    "Inv-kin": inv_kin,
+    "Plan-motion": plan_motion,
+    "Move-Pick": move_pick,
+    "Move-Place": move_place,
+}

@@ -1,0 +1,214 @@
+"""A task's scene in one PyBullet client: the Panda, static bodies, movable bodies, collisions.
+
+The client id lives on the `Scene` object; nothing here is global. Collision queries run
+PyBullet's broadphase once (`performCollisionDetection`) and read every contact at once.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import pybullet as p
+import pybullet_data
+
+from planner.sim.geometry import Pose, compose, invert, yaw_quat
+from planner.tasks.schema import FixedBody, NamedPose, Region, Task
+
+ARM_JOINTS = (0, 1, 2, 3, 4, 5, 6)
+FINGER_JOINTS = (9, 10)
+TCP_LINK = 11  # panda_grasptarget, between the fingertips
+HAND_LINKS = (7, 8, 9, 10, 11)  # flange, hand, fingers: may touch the body they hold
+MAX_FINGER_OPENING = 0.04  # per finger: the gripper opens 0.08 m
+PLACE_CLEARANCE = 0.001  # a placed body floats 1 mm above its support, as the authors do
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A penetrating contact between the robot or the held body and another body."""
+
+    other: str
+    depth: float
+
+
+class Scene:
+    """Bodies of one task in one PyBullet client (DIRECT unless `gui`)."""
+
+    def __init__(self, task: Task, *, gui: bool = False) -> None:
+        self.task = task
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
+        self.gui = gui
+        p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=self.client)
+        ws = task.workspace
+        flags = p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
+        self.robot = p.loadURDF(
+            ws.robot.urdf,
+            basePosition=ws.robot.base,
+            useFixedBase=True,
+            flags=flags,
+            physicsClientId=self.client,
+        )
+        self.joint_low = []
+        self.joint_high = []
+        for j in ARM_JOINTS:
+            info = p.getJointInfo(self.robot, j, physicsClientId=self.client)
+            self.joint_low.append(info[8])
+            self.joint_high.append(info[9])
+        self.names: dict[int, str] = {self.robot: "robot"}
+        self.ids: dict[str, int] = {}
+        statics = [*ws.fixed.values(), *(ws.obstacles[n] for n in task.obstacles)]
+        for body in statics:
+            self._add_static(body)
+        self.static_names = tuple(b.name for b in statics)
+        self.sizes: dict[str, tuple[float, float, float]] = {}
+        for body in task.bodies.values():
+            half = [s / 2 for s in body.size]
+            shape = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=half, physicsClientId=self.client
+            )
+            visual = p.createVisualShape(
+                p.GEOM_BOX, halfExtents=half, rgbaColor=body.color, physicsClientId=self.client
+            )
+            # Non-zero mass so PyBullet reports its contacts with static bodies; never stepped.
+            uid = p.createMultiBody(0.2, shape, visual, physicsClientId=self.client)
+            self._register(body.name, uid)
+            self.sizes[body.name] = body.size
+            self.set_pose(body.name, self.named_pose(body.pose, body.name))
+        self.movable_names = tuple(task.bodies)
+
+    def _register(self, name: str, uid: int) -> None:
+        self.ids[name] = uid
+        self.names[uid] = name
+
+    def _add_static(self, body: FixedBody) -> None:
+        n = len(body.parts)
+        shapes = dict(
+            shapeTypes=[p.GEOM_BOX] * n,
+            halfExtents=[[s / 2 for s in part.size] for part in body.parts],
+            collisionFramePositions=[part.offset for part in body.parts],
+        )
+        collision = p.createCollisionShapeArray(**shapes, physicsClientId=self.client)
+        visual = p.createVisualShapeArray(
+            shapeTypes=shapes["shapeTypes"],
+            halfExtents=shapes["halfExtents"],
+            visualFramePositions=shapes["collisionFramePositions"],
+            rgbaColors=[body.color] * n,
+            physicsClientId=self.client,
+        )
+        uid = p.createMultiBody(
+            0,
+            collision,
+            visual,
+            basePosition=body.position,
+            baseOrientation=yaw_quat(body.yaw),
+            physicsClientId=self.client,
+        )
+        self._register(body.name, uid)
+
+    # -- poses -----------------------------------------------------------------------------
+    def region(self, name: str) -> Region:
+        return self.task.workspace.regions[name]
+
+    def standing_pose(self, body: str, region: Region, x: float, y: float, yaw: float) -> Pose:
+        z = region.center[2] + self.sizes[body][2] / 2 + PLACE_CLEARANCE
+        return (x, y, z), yaw_quat(yaw)
+
+    def named_pose(self, pose: str, body: str) -> Pose:
+        named: NamedPose = self.task.workspace.poses[pose]
+        return self.standing_pose(body, self.region(named.region), *named.xy, named.yaw)
+
+    def region_pose(self, body: str, region_name: str, seed: Iterable[float]) -> Pose:
+        """Map a seed in [0,1]^3 to a standing pose in the region, as the authors do: x and y in
+        the region's box shrunk by half the body's footprint, yaw in [-pi, pi]."""
+        sx, sy, syaw = (min(1.0, max(0.0, float(v))) for v in seed)
+        region = self.region(region_name)
+        margin = max(self.sizes[body][:2]) / 2
+        half_x = max(0.0, region.size[0] / 2 - margin)
+        half_y = max(0.0, region.size[1] / 2 - margin)
+        local = ((2 * sx - 1) * half_x, (2 * sy - 1) * half_y, 0.0)
+        frame = ((region.center[0], region.center[1], 0.0), yaw_quat(region.yaw))
+        (x, y, _), _ = compose(frame, (local, (0.0, 0.0, 0.0, 1.0)))
+        return self.standing_pose(body, region, x, y, region.yaw + (2 * syaw - 1) * math.pi)
+
+    def in_region(self, body: str, region_name: str, tolerance: float = 3e-3) -> bool:
+        region = self.region(region_name)
+        pos, _ = self.pose(body)
+        frame = ((region.center[0], region.center[1], 0.0), yaw_quat(region.yaw))
+        (lx, ly, _), _ = compose(invert(frame), (pos, (0.0, 0.0, 0.0, 1.0)))
+        bottom = pos[2] - self.sizes[body][2] / 2
+        return (
+            abs(lx) <= region.size[0] / 2 + tolerance
+            and abs(ly) <= region.size[1] / 2 + tolerance
+            and abs(bottom - region.center[2] - PLACE_CLEARANCE) <= tolerance
+        )
+
+    def pose(self, name: str) -> Pose:
+        pos, orn = p.getBasePositionAndOrientation(self.ids[name], physicsClientId=self.client)
+        return tuple(pos), tuple(orn)  # type: ignore[return-value]
+
+    def set_pose(self, name: str, pose: Pose) -> None:
+        p.resetBasePositionAndOrientation(
+            self.ids[name], pose[0], pose[1], physicsClientId=self.client
+        )
+
+    # -- robot -----------------------------------------------------------------------------
+    def set_arm(self, q: Iterable[float]) -> None:
+        for j, v in zip(ARM_JOINTS, q, strict=True):
+            p.resetJointState(self.robot, j, v, physicsClientId=self.client)
+
+    def arm(self) -> tuple[float, ...]:
+        states = p.getJointStates(self.robot, ARM_JOINTS, physicsClientId=self.client)
+        return tuple(s[0] for s in states)
+
+    def set_fingers(self, opening: float) -> None:
+        for j in FINGER_JOINTS:
+            p.resetJointState(self.robot, j, opening, physicsClientId=self.client)
+
+    def fingers(self) -> float:
+        return p.getJointState(self.robot, FINGER_JOINTS[0], physicsClientId=self.client)[0]
+
+    def tcp(self) -> Pose:
+        state = p.getLinkState(
+            self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
+        )
+        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+
+    def joint_range(self, index: int) -> tuple[float, float]:
+        return self.joint_low[index], self.joint_high[index]
+
+    def within_limits(self, q: Iterable[float]) -> bool:
+        return all(
+            lo - 1e-6 <= v <= hi + 1e-6
+            for v, lo, hi in zip(q, self.joint_low, self.joint_high, strict=True)
+        )
+
+    # -- collisions ------------------------------------------------------------------------
+    def contacts(self, held: str | None = None) -> list[Contact]:
+        """Penetrations of the robot (self-collision included) and of the held body; contacts
+        between a held body and the gripper holding it do not count."""
+        p.performCollisionDetection(physicsClientId=self.client)
+        found: list[Contact] = []
+        held_id = self.ids[held] if held is not None else None
+        for cp in p.getContactPoints(physicsClientId=self.client):
+            depth = -cp[8]
+            if depth <= 0.0:
+                continue
+            a, b = cp[1], cp[2]
+            if self.robot not in (a, b) and held_id not in (a, b):
+                continue
+            if {a, b} == {self.robot, held_id}:
+                link = cp[3] if a == self.robot else cp[4]
+                if link in HAND_LINKS:
+                    continue
+            if a == b == self.robot:
+                found.append(Contact("robot", depth))
+                continue
+            mover = a if a in (self.robot, held_id) else b
+            other = b if mover == a else a
+            found.append(Contact(self.names.get(other, str(other)), depth))
+        return found
+
+    def close(self) -> None:
+        if p.isConnected(self.client):
+            p.disconnect(self.client)

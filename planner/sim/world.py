@@ -1,0 +1,119 @@
+"""`PyBulletWorld`: a task's skeleton executed in PyBullet, behind the `BindingWorld` seam."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from client.models import Value
+from planner.sim.geometry import Pose
+from planner.sim.grasps import Grasp
+from planner.sim.motion import CollisionTally
+from planner.sim.operators import OPERATORS, ArmConfig, Execution
+from planner.sim.scene import MAX_FINGER_OPENING, Scene
+from planner.skeleton import Skeleton
+from planner.tasks import Task, build_skeleton
+from planner.tasks.loader import HOME_CONFIG
+from planner.world import CheckResult, TransitionOutcome
+
+
+@dataclass(frozen=True)
+class SimState:
+    """Everything needed to put the world back as it was after a transition: arm, fingers,
+    body poses, the grasp held (if any) and the values produced so far (#config1, #traj01)."""
+
+    arm: tuple[float, ...]
+    fingers: float
+    poses: tuple[tuple[str, Pose], ...]
+    held: Grasp | None
+    values: tuple[tuple[str, object], ...]
+
+
+class PyBulletWorld:
+    """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`."""
+
+    def __init__(self, task: Task, *, seed: int, gui: bool = False) -> None:
+        self.task = task
+        self.name = task.name
+        self.seed = int(seed)
+        self.skeleton: Skeleton = build_skeleton(task)
+        self.scene = Scene(task, gui=gui)
+        self.pose_sources = {
+            d.var: (d.producer.args[0], d.producer.args[1])
+            for d in self.skeleton.decisions
+            if d.kind == "#pose"
+        }
+        self._initial = SimState(
+            arm=tuple(task.workspace.robot.home),
+            fingers=MAX_FINGER_OPENING,
+            poses=tuple((n, self.scene.pose(n)) for n in self.scene.movable_names),
+            held=None,
+            values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),
+        )
+        self.restore(self._initial)
+
+    @property
+    def client(self) -> int:
+        return self.scene.client
+
+    def initial_state(self) -> SimState:
+        return self._initial
+
+    def restore(self, state: object) -> None:
+        if not isinstance(state, SimState):
+            raise TypeError(f"not a state of this world: {type(state).__name__}")
+        for name, pose in state.poses:
+            self.scene.set_pose(name, pose)
+        self.scene.set_arm(state.arm)
+        self.scene.set_fingers(state.fingers)
+
+    def transition(
+        self, index: int, bindings: Mapping[str, Value], state: object
+    ) -> TransitionOutcome:
+        started = time.perf_counter()
+        layers = self.skeleton.transitions
+        if not 0 <= index < len(layers):
+            raise IndexError(f"{self.name} has transition layers 0..{len(layers) - 1}, not {index}")
+        self._check_bindings(index, bindings)
+        self.restore(state)
+        assert isinstance(state, SimState)
+        ex = Execution(
+            scene=self.scene,
+            settings=self.task.settings,
+            seed=self.seed,
+            bindings=bindings,
+            pose_sources=self.pose_sources,
+            values=dict(state.values),
+            arm=state.arm,
+            held=state.held,
+        )
+        checks: list[CheckResult] = []
+        for call in layers[index].calls:
+            ex.tally = CollisionTally()
+            result = OPERATORS[call.name](call, ex)
+            checks.append(result)
+            if not result.ok:
+                return TransitionOutcome(tuple(checks), None, time.perf_counter() - started)
+        new_state = SimState(
+            arm=ex.arm,
+            fingers=self.scene.fingers(),
+            poses=tuple((n, self.scene.pose(n)) for n in self.scene.movable_names),
+            held=ex.held,
+            values=tuple(ex.values.items()),
+        )
+        return TransitionOutcome(tuple(checks), new_state, time.perf_counter() - started)
+
+    def _check_bindings(self, index: int, bindings: Mapping[str, Value]) -> None:
+        needed = [d for d in self.skeleton.decisions[: index + 1]]
+        for d in needed:
+            if d.var not in bindings:
+                raise KeyError(f"{self.name}: transition {index} needs a binding for {d.var}")
+            value = bindings[d.var]
+            if d.kind == "#dir" and value not in d.domain.choices:  # type: ignore[union-attr]
+                raise ValueError(f"{d.var} must be one of {d.domain.choices}, got {value!r}")
+            if d.kind == "#pose" and (not isinstance(value, list | tuple) or len(value) != 3):
+                raise ValueError(f"{d.var} must be 3 numbers in [0, 1], got {value!r}")
+
+    def close(self) -> None:
+        self.scene.close()

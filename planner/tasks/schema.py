@@ -1,0 +1,128 @@
+"""The validated, in-memory form of a task file and of the workspace it lives in.
+
+Pure data (no PyBullet): the loader builds these from YAML, the simulator builds a scene from
+them. Lengths are metres, angles in the files are degrees and radians here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+Vec3 = tuple[float, float, float]
+
+
+class TaskError(ValueError):
+    """A task or workspace file with a mistake; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class BoxPart:
+    """A box of `size` (full extents) centred at `offset` in its owner's frame."""
+
+    size: Vec3
+    offset: Vec3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FixedBody:
+    """A static body (table, shelf, obstacle): one or more boxes at `position`, turned by `yaw`."""
+
+    name: str
+    position: Vec3
+    yaw: float
+    parts: tuple[BoxPart, ...]
+    color: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Region:
+    """A rectangle on a support surface: centre (x, y, top z), full size (x, y), turned by yaw."""
+
+    name: str
+    center: Vec3
+    size: tuple[float, float]
+    yaw: float = 0.0
+
+
+@dataclass(frozen=True)
+class NamedPose:
+    """A fixed body pose on a region: x, y and yaw; z follows from the body standing on it."""
+
+    name: str
+    region: str
+    xy: tuple[float, float]
+    yaw: float
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    urdf: str
+    base: Vec3
+    home: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Simulator settings that trade thoroughness for rollout time."""
+
+    ik_restarts: int = 8
+    ik_iterations: int = 100
+    ik_tolerance: float = 1e-3
+    motion_timeout: float = 0.25
+    motion_resolution: float = 0.05
+    approach: float = 0.1
+
+
+@dataclass(frozen=True)
+class Workspace:
+    name: str
+    robot: RobotSpec
+    fixed: dict[str, FixedBody]
+    obstacles: dict[str, FixedBody]
+    regions: dict[str, Region]
+    poses: dict[str, NamedPose]
+
+
+@dataclass(frozen=True)
+class MovableBody:
+    name: str
+    size: Vec3
+    pose: str
+    color: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Call:
+    """One operator call as written: `name(args...) -> outputs`."""
+
+    name: str
+    args: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class LayerSpec:
+    kind: str
+    calls: tuple[Call, ...]
+
+
+@dataclass(frozen=True)
+class Goal:
+    """`On(body, region)`: the body ends standing inside the region."""
+
+    predicate: str
+    body: str
+    region: str
+
+
+@dataclass(frozen=True)
+class Task:
+    name: str
+    description: str
+    source: str
+    workspace: Workspace
+    obstacles: tuple[str, ...]
+    bodies: dict[str, MovableBody]
+    layers: tuple[LayerSpec, ...]
+    goal: tuple[Goal, ...]
+    settings: PlannerSettings = field(default_factory=PlannerSettings)
