@@ -1,7 +1,9 @@
 """Causal graphs -> CP type IDs, and decision values checked against a type's space.
 
 The type ID is networkx's Weisfeiler-Lehman hash of the directed graph with node attribute
-`role:label` and edge attribute `label`: node ids and order do not matter. A hash says
+`role:label`, each edge subdivided by a node labelled `edge:<label>`: node ids and order do not
+matter. (Subdivided, because networkx 3.6 drops the edge direction when `edge_attr` is given:
+it prefixes successor and predecessor labels alike with the edge label.) A hash says
 "probably the same type"; `check_same_type` then confirms with an isomorphism test (roles,
 labels, domains, edge labels) so that a collision or a changed domain is a conflict, never
 a silent merge. Resolved graphs are cached by their JSON, because planners post the same
@@ -22,7 +24,8 @@ from networkx.algorithms.isomorphism import DiGraphMatcher
 from client.models import CategoricalDomain, ContinuousDomain, Graph, Value
 
 Domain = CategoricalDomain | ContinuousDomain
-WL_ITERATIONS = 3
+# Each edge is two hops once subdivided: 6 iterations see as far as 3 on the graph itself.
+WL_ITERATIONS = 6
 # networkx >= 3.5 tells on every call that directed hashes changed in 3.5; we rely on >= 3.5.
 warnings.filterwarnings("ignore", message="The hashes produced for directed graphs changed")
 ROLE_ORDER = {"failure": 0, "decision": 1, "context": 2, "connection": 3}
@@ -101,11 +104,22 @@ def _digraph(graph: Graph) -> nx.DiGraph:
     return g
 
 
-def _canonical(graph: Graph, g: nx.DiGraph) -> dict[str, Any]:
+def _wl_graph(graph: Graph) -> nx.DiGraph:
+    """The graph to hash: a node per vertex (`role:label`) and per edge (`edge:label`)."""
+    g = nx.DiGraph()
+    for node in graph.nodes:
+        g.add_node(("v", node.id), wl=f"{node.role}:{node.label}")
+    for i, edge in enumerate(graph.edges):
+        g.add_node(("e", i), wl=f"edge:{edge.label}")
+        g.add_edge(("v", edge.source), ("e", i))
+        g.add_edge(("e", i), ("v", edge.target))
+    return g
+
+
+def _canonical(graph: Graph, wl: nx.DiGraph) -> dict[str, Any]:
     """Node ids renamed n0, n1, ... in an order fixed by role, label and WL neighbourhood."""
-    subtree = nx.weisfeiler_lehman_subgraph_hashes(
-        g, node_attr="wl", edge_attr="label", iterations=WL_ITERATIONS
-    )
+    hashes = nx.weisfeiler_lehman_subgraph_hashes(wl, node_attr="wl", iterations=WL_ITERATIONS)
+    subtree = {node_id: hashes[("v", node_id)] for kind, node_id in hashes if kind == "v"}
     order = sorted(
         graph.nodes, key=lambda n: (ROLE_ORDER[n.role], n.label, tuple(subtree[n.id]), n.id)
     )
@@ -129,14 +143,12 @@ def _canonical(graph: Graph, g: nx.DiGraph) -> dict[str, Any]:
 def _resolve_json(graph_json: str) -> ResolvedGraph:
     graph = Graph.model_validate_json(graph_json)
     validate_graph(graph)
-    g = _digraph(graph)
-    type_id = nx.weisfeiler_lehman_graph_hash(
-        g, node_attr="wl", edge_attr="label", iterations=WL_ITERATIONS
-    )
+    wl = _wl_graph(graph)
+    type_id = nx.weisfeiler_lehman_graph_hash(wl, node_attr="wl", iterations=WL_ITERATIONS)
     space = {n.label: n.domain for n in graph.nodes if n.role == "decision" and n.domain}
     return ResolvedGraph(
         type_id=type_id,
-        canonical=_canonical(graph, g),
+        canonical=_canonical(graph, wl),
         space=dict(sorted(space.items())),
         failure=next(n.label for n in graph.nodes if n.role == "failure"),
         decisions=sorted(space),

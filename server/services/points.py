@@ -115,12 +115,14 @@ def _types(
     rows = session.scalars(
         select(TypeRow).where(TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(distinct))
     ).all()
-    out = {}
-    for row in rows:
-        if row.type_id not in created:
-            check_or_409(distinct[row.type_id], row)
-        out[row.type_id] = (row.id, row.type_id in created)
-    return out
+    by_id = {row.type_id: row for row in rows}
+    checked: set[str] = set()
+    for r in resolved:
+        marker = f"{r.type_id}:{id(r)}"
+        if marker not in checked:
+            check_or_409(r, by_id[r.type_id])
+            checked.add(marker)
+    return {row.type_id: (row.id, row.type_id in created) for row in rows}
 
 
 def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:

@@ -1,0 +1,77 @@
+"""Type IDs: invariant to node ids, sensitive to labels, roles, edges; collisions caught."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from service_support import collision_pair, make_graph
+
+from client.models import Graph
+from server.graphs import GraphError, TypeConflict, check_same_type, check_x, resolve_graph
+
+
+def resolve(graph: dict[str, Any]) -> Any:
+    return resolve_graph(Graph.model_validate(graph))
+
+
+def test_renamed_reordered_graph_has_the_same_type_and_canonical_form() -> None:
+    a = resolve(make_graph(context=("box1", "box2")))
+    other = make_graph(context=("box1", "box2"), prefix="zz-")
+    other["nodes"] = other["nodes"][::-1]
+    b = resolve(other)
+    assert a.type_id == b.type_id and len(a.type_id) == 32
+    assert a.canonical == b.canonical
+    check_same_type(b, a.canonical)
+
+
+@pytest.mark.parametrize(
+    "variant",
+    [
+        make_graph(failure="Plan-motion"),
+        make_graph(context=("box2",)),
+        make_graph(context=()),
+        make_graph(context=("box1", "box1")),
+    ],
+)
+def test_labels_and_structure_change_the_type(variant: dict[str, Any]) -> None:
+    assert resolve(variant).type_id != resolve(make_graph()).type_id
+
+
+def test_edge_labels_and_direction_change_the_type() -> None:
+    relabelled = make_graph()
+    relabelled["edges"][0]["label"] = "other"
+    reversed_edge = make_graph()
+    edge = reversed_edge["edges"][2]
+    edge["source"], edge["target"] = edge["target"], edge["source"]
+    base = resolve(make_graph()).type_id
+    assert resolve(relabelled).type_id != base
+    assert resolve(reversed_edge).type_id != base
+
+
+def test_domain_is_not_hashed_but_checked() -> None:
+    a = resolve(make_graph())
+    b = resolve(make_graph(pose_domain={"kind": "continuous", "low": [0], "high": [1]}))
+    assert a.type_id == b.type_id
+    with pytest.raises(TypeConflict, match="'#pose'"):
+        check_same_type(b, a.canonical)
+
+
+def test_collision_pair_shares_a_hash_but_conflicts() -> None:
+    six, threes = (resolve(g) for g in collision_pair())
+    assert six.type_id == threes.type_id
+    with pytest.raises(TypeConflict, match="not isomorphic"):
+        check_same_type(threes, six.canonical)
+
+
+def test_x_is_checked_against_the_space() -> None:
+    space = resolve(make_graph()).space
+    check_x({"#dir": "top", "#pose": [0.0, 1.0, 3.0]}, space)
+    with pytest.raises(GraphError, match=r"x.#pose\[2\]: inf is not a finite number"):
+        check_x({"#dir": "top", "#pose": [0.0, 1.0, float("inf")]}, space)
+
+
+def test_graph_rules() -> None:
+    no_decision = {"nodes": [{"id": "f", "role": "failure", "label": "x"}], "edges": []}
+    with pytest.raises(GraphError, match="at least one decision"):
+        resolve(no_decision)
