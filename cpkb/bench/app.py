@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import sys
 import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -114,6 +115,12 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
         table.add_row(*cells)
     console.print(table)
     console.print("wrote " + ", ".join(str(p) for p in paths))
+    troubled = sum(r.kb_error_runs for r in rows)
+    if troubled:
+        console.print(
+            f"[yellow]warning[/yellow]: {troubled} runs met knowledge-base errors (their "
+            "samplers fell back to quasi-random there); see `notes` in runs.jsonl"
+        )
 
 
 def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
@@ -135,7 +142,8 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
 
 def run_command(settings: BenchSettings, run_fn: RunFn | None = None) -> int:
     """The CLI's body; exit status 0 when every asked run has a result, 1 otherwise."""
-    console = Console(stderr=False)
+    # Piped output (a log file, CI) gets the full table rather than 80 squeezed columns.
+    console = Console(width=None if sys.stdout.isatty() else 200)
     if settings.summary_only:
         report(settings.out_dir, settings, console)
         return 0

@@ -32,7 +32,7 @@ def box_plot(
         data.setdefault(r["task"], {}).setdefault(r["method"], []).append(metric(r))
     task_order = ordered(data, tasks) or ["(no runs)"]
     fig, axes = plt.subplots(
-        1, len(task_order), figsize=(4.2 * len(task_order), 4.2), squeeze=False
+        1, len(task_order), figsize=(max(6.0, 4.4 * len(task_order)), 5.0), squeeze=False
     )
     for ax, task in zip(axes[0], task_order, strict=True):
         cell = data.get(task, {})
@@ -52,7 +52,7 @@ def box_plot(
         ax.set_title(task)
         ax.grid(axis="y", alpha=0.3)
     axes[0][0].set_ylabel(ylabel)
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -74,8 +74,8 @@ def write_plots(
             records,
             rollouts_metric,
             out / "rollouts.png",
-            ylabel="rollouts to the first feasible binding (log; unsolved = cap)",
-            title="Rollouts per method (box: quartiles, o: mean)",
+            ylabel="rollouts to the first feasible binding",
+            title="Rollouts per method (log scale; box: quartiles, o: mean; unsolved = cap)",
             tasks=tasks,
             methods=methods,
         ),
@@ -83,8 +83,8 @@ def write_plots(
             records,
             lambda r: float(r["wall_s"]),
             out / "wall_time.png",
-            ylabel="wall time to the first feasible binding, s (log)",
-            title="Wall time per method (target task only)",
+            ylabel="wall time to the first feasible binding, s",
+            title="Wall time per method (log scale; target task only)",
             tasks=tasks,
             methods=methods,
         ),

@@ -129,7 +129,18 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
                 job, task, TRANSFER_SAMPLER, job.predecessor_rollouts, **job.predecessor_kwargs
             )
             predecessors.append(
-                {k: pre.get(k) for k in ("task", "solved", "rollouts", "wall_s", "sim_s", "kb_s")}
+                {
+                    k: pre.get(k)
+                    for k in (
+                        "solved",
+                        "rollouts",
+                        "rollouts_spent",
+                        "wall_s",
+                        "sim_s",
+                        "kb_s",
+                        "points_posted",
+                    )
+                }
                 | {"task": task}
             )
         record = _call(job, s.task, s.sampler, job.max_rollouts)

@@ -39,6 +39,7 @@ class CellSummary:
     wall_reduction_pct: float | None
     wall_p_value: float | None
     paper_reduction_pct: float | None
+    kb_error_runs: int = 0
 
 
 def ordered(values: Iterable[str], preferred: Sequence[str]) -> list[str]:
@@ -109,6 +110,7 @@ def summarize(
                     paper_reduction_pct=PAPER_REDUCTION_PERCENT.get(task)
                     if method == TRANSFER_METHOD
                     else None,
+                    kb_error_runs=sum(1 for r in runs if r.get("kb_errors")),
                 )
             )
     return rows
@@ -138,6 +140,7 @@ HEADERS = (
     "wall median",
     "wall reduction",
     "wall p",
+    "KB errors",
 )
 
 
@@ -158,6 +161,7 @@ def table_rows(rows: Sequence[CellSummary]) -> list[list[str]]:
             f"{r.wall_median_s:.2f} s",
             _fmt(r.wall_reduction_pct, ".1f", "%"),
             _fmt_p(r.wall_p_value),
+            f"{r.kb_error_runs} runs" if r.kb_error_runs else "-",
         ]
         for r in rows
     ]

@@ -1,0 +1,68 @@
+"""`cpkb bench` from the command line: clear errors, and a real run on the analytic desk."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cpkb.cli import main
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--seeds", "0"], "must be at least 1, got 0"),
+        (["--workers", "two"], "not a whole number: 'two'"),
+        (["--time-limit", "5x"], "not a duration"),
+        (["--methods", "cp-bo,cp-bo"], "a name is repeated"),
+        (["--tasks", "analytic:desk", "--methods", "cp-bo,nope"], "unknown method 'nope'"),
+        (["--tasks", "nosuch", "--methods", "cp-bo"], "unknown task 'nosuch'"),
+        (["--tasks", "missing/task.yaml", "--methods", "cp-bo"], "no such task file"),
+        (["--tasks", "analytic:deskP", "--methods", "cp-bo-transfer"], "no predecessor tasks"),
+    ],
+)
+def test_bad_arguments_are_one_line_errors(
+    argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        code = main(["bench", "--out", str(tmp_path / "out"), *argv])
+        raise SystemExit(code)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    command = [
+        sys.executable, "-m", "cpkb", "bench", "--tasks", "analytic:desk",
+        "--methods", "quasi-random,cp-bo-transfer", "--seeds", "2", "--workers", "2",
+        "--max-rollouts", "300", "--out", str(out), "--quiet",
+    ]  # fmt: skip
+    first = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    assert "4 runs finished, 0 already done, 0 failed, 0 left" in first.stdout
+    runs = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert sorted((r["method"], r["seed"]) for r in runs) == [
+        ("cp-bo-transfer", 0), ("cp-bo-transfer", 1), ("quasi-random", 0), ("quasi-random", 1)
+    ]  # fmt: skip
+    transfer = [r for r in runs if r["method"] == "cp-bo-transfer"]
+    assert all(r["predecessors"][0]["task"] == "analytic:deskP" for r in transfer)
+    assert all(r["predecessors"][0]["rollouts_spent"] == 30 for r in transfer)
+    assert all(r["solved"] for r in runs)
+    for name in ("summary.md", "summary.csv", "rollouts.png", "wall_time.png"):
+        assert (out / name).stat().st_size > 0
+    assert "| analytic:desk | cp-bo-transfer | 2 |" in (out / "summary.md").read_text()
+
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert "0 runs finished, 4 already done" in again.stdout
+    summary = subprocess.run(
+        [*command[:3], "--tasks", "analytic:desk", "--out", str(out), "--summary-only"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert summary.returncode == 0 and "cp-bo-transfer" in summary.stdout
