@@ -7,6 +7,10 @@ and delete needs `Authorization: Bearer <token>` (401 without); reads stay open 
 method is GET/HEAD/OPTIONS or it is one of the POST queries below that store nothing, so a
 new write route is protected without anyone remembering to mark it.
 
+Browsers cannot send a bearer header when they open a page, so the dashboard's reads (when
+`CPKB_AUTH_READS` guards them) accept the token from an HttpOnly, SameSite=Strict cookie set by
+`/login`; writes never accept the cookie, so a cross-site form cannot write with it.
+
 Wiring (two lines in the app factory):
     app = FastAPI(..., dependencies=[Depends(authorize)])
     install_security(app, settings)
@@ -15,13 +19,16 @@ Wiring (two lines in the app factory):
 from __future__ import annotations
 
 import hmac
+import html
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Protocol
+from urllib.parse import parse_qs, quote
 
-from fastapi import Depends, FastAPI, HTTPException, Request, status
+from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request, Response, status
 from fastapi.middleware.cors import CORSMiddleware
+from fastapi.responses import HTMLResponse, RedirectResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from pydantic import SecretStr
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -30,7 +37,8 @@ READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 # POST routes that only query: they take a body because their question does not fit a URL.
 READ_ONLY_POST_SUFFIXES = ("/types/match", "/predict", "/suggest")
 # Always open, so that liveness probes and the API docs work without a token.
-OPEN_PATHS = frozenset({"/healthz", "/docs", "/redoc", "/openapi.json"})
+OPEN_PATHS = frozenset({"/healthz", "/docs", "/redoc", "/openapi.json", "/login", "/logout"})
+COOKIE = "cpkb_token"
 
 
 class SecurityConfigError(ValueError):
@@ -133,19 +141,72 @@ async def authorize(
     route_path = getattr(route, "path", request.url.path)
     if not policy.needs_token(request.method, route_path):
         return
-    if credentials is None:
+    presented = credentials.credentials if credentials is not None else None
+    if presented is None and not is_write(request.method, route_path):
+        presented = request.cookies.get(COOKIE)
+    if presented is None:
+        if request.method == "GET" and "text/html" in request.headers.get("accept", ""):
+            target = quote(request.url.path, safe="/")
+            raise HTTPException(
+                status.HTTP_303_SEE_OTHER, headers={"Location": f"/login?next={target}"}
+            )
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             detail="this server needs a token: send 'Authorization: Bearer <token>' "
-            "(client: token=..., CLI: --token or CPKB_TOKEN)",
+            "(client: token=..., CLI: --token or CPKB_TOKEN; browser: /login)",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    if not policy.accepts(credentials.credentials):
+    if not policy.accepts(presented):
         raise HTTPException(
             status.HTTP_401_UNAUTHORIZED,
             detail="invalid token",
             headers={"WWW-Authenticate": 'Bearer error="invalid_token"'},
         )
+
+
+login_router = APIRouter(include_in_schema=False)
+
+
+def _local_path(target: str) -> str:
+    """Only same-site paths after a login: no open redirect to another host."""
+    return target if target.startswith("/") and not target.startswith("//") else "/"
+
+
+def _login_page(target: str, error: str = "") -> str:
+    message = f"<p role=alert>{html.escape(error)}</p>" if error else ""
+    return (
+        "<!doctype html><title>cpkb: sign in</title><h1>cpkb knowledge base</h1>"
+        f"{message}<form method=post action=/login>"
+        f"<input type=hidden name=next value='{html.escape(_local_path(target), quote=True)}'>"
+        "<label>Token <input type=password name=token autofocus></label>"
+        "<button>Sign in</button></form>"
+    )
+
+
+@login_router.get("/login", response_class=HTMLResponse)
+def login_form(target: Annotated[str, Query(alias="next", max_length=2000)] = "/") -> str:
+    return _login_page(target)
+
+
+@login_router.post("/login", response_class=HTMLResponse)
+async def login(request: Request) -> Response:
+    """Check the token from the form; on success keep it in a cookie that only reads accept."""
+    fields = parse_qs((await request.body()).decode("utf-8", "replace"), max_num_fields=4)
+    token = fields.get("token", [""])[0]
+    target = _local_path(fields.get("next", ["/"])[0])
+    policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
+    if policy.enabled and not policy.accepts(token):
+        return HTMLResponse(_login_page(target, "invalid token"), status_code=401)
+    response = RedirectResponse(target, status_code=status.HTTP_303_SEE_OTHER)
+    response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+    return response
+
+
+@login_router.post("/logout")
+def logout() -> Response:
+    response = RedirectResponse("/login", status_code=status.HTTP_303_SEE_OTHER)
+    response.delete_cookie(COOKIE, path="/")
+    return response
 
 
 class BodySizeLimit:
@@ -218,8 +279,10 @@ def _replay(messages: list[Message], then: Receive | None = None) -> Receive:
 
 
 def install_security(app: FastAPI, settings: AccessSettings) -> None:
-    """Attach the access policy, the body-size limit and (only when configured) CORS."""
+    """Attach the access policy, the browser login, the body-size limit and (only when
+    configured) CORS."""
     app.state.access_policy = AccessPolicy.from_settings(settings)
+    app.include_router(login_router)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     if settings.cors_origins:
         app.add_middleware(

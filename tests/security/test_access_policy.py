@@ -191,3 +191,30 @@ def test_cors_is_off_by_default_and_on_when_configured() -> None:
 
 def test_default_bind_is_loopback() -> None:
     assert Settings().host == "127.0.0.1"
+
+
+def test_browser_login_sets_a_cookie_that_reads_accept_and_writes_do_not() -> None:
+    with TestClient(make_app(token="s3cret", auth_reads=True), follow_redirects=False) as client:
+        page = client.get("/v1/kbs", headers={"Accept": "text/html"})
+        assert page.status_code == 303
+        assert page.headers["location"] == "/login?next=/v1/kbs"
+        assert "password" in client.get("/login", params={"next": "/v1/kbs"}).text
+        wrong = client.post("/login", data={"token": "nope", "next": "/v1/kbs"})
+        assert wrong.status_code == 401 and "cpkb_token" not in wrong.headers.get("set-cookie", "")
+        right = client.post("/login", data={"token": "s3cret", "next": "/v1/kbs"})
+        assert right.status_code == 303 and right.headers["location"] == "/v1/kbs"
+        cookie = right.headers["set-cookie"].lower()
+        assert "httponly" in cookie and "samesite=strict" in cookie
+        assert client.get("/v1/kbs").status_code == 200
+        assert client.post("/v1/kbs", json={}).status_code == 401, "a cookie must never write"
+        assert client.post("/logout").status_code == 303
+        assert client.get("/v1/kbs").status_code == 401
+
+
+def test_login_never_redirects_to_another_site() -> None:
+    with TestClient(make_app(token="s3cret"), follow_redirects=False) as client:
+        for target in ("//evil.example/x", "https://evil.example", "javascript:alert(1)"):
+            response = client.post("/login", data={"token": "s3cret", "next": target})
+            assert response.headers["location"] == "/"
+        page = client.get("/login", params={"next": "'><script>alert(1)</script>"})
+        assert "<script>" not in page.text

@@ -1,0 +1,159 @@
+"""The token on the real service: every write route of the app needs it, reads follow the
+setting, and the client, the CLI and `cpkb serve` handle it, against a real server."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.routing import APIRoute
+from fastapi.testclient import TestClient
+
+from client import CpkbClient, Unauthorized
+from cpkb.cli import main as cpkb_main
+from cpkb.embedded import embedded_service
+from server.app import create_app
+from server.security import OPEN_PATHS, is_write
+from server.settings import Settings
+
+TOKEN = "correct-horse-battery-staple"
+GRAPH = {
+    "nodes": [
+        {"id": "f", "role": "failure", "label": "Inv-kin"},
+        {
+            "id": "d",
+            "role": "decision",
+            "label": "#dir",
+            "domain": {"kind": "categorical", "choices": ["front", "top"]},
+        },
+    ],
+    "edges": [{"source": "d", "target": "f", "label": "feeds"}],
+}
+POINT = {"graph": GRAPH, "x": {"#dir": "top"}, "feasible": True}
+
+
+def app_settings(db: Path, **overrides: object) -> Settings:
+    base = {"database_url": f"sqlite:///{db}", "token": TOKEN, "tokens_file": None}
+    return Settings(**(base | overrides))
+
+
+def routes(app) -> list[tuple[str, str]]:
+    """Every (method, concrete path) of the app's API routes, path parameters filled in."""
+    found = []
+    for route in app.routes:
+        if not isinstance(route, APIRoute):
+            continue
+        path = re.sub(r"\{kb\}", "default", route.path)
+        path = re.sub(r"\{[^}]+\}", "0123abcd", path)
+        found += [(method, route.path, path) for method in sorted(route.methods)]
+    return found
+
+
+@pytest.fixture
+def guarded(tmp_path: Path) -> Iterator[TestClient]:
+    with TestClient(create_app(app_settings(tmp_path / "kb.sqlite"))) as client:
+        yield client
+
+
+def test_every_write_route_of_the_app_needs_the_token(guarded: TestClient) -> None:
+    writes = [(m, t, p) for m, t, p in routes(guarded.app) if is_write(m, t)]
+    assert {("POST", "/v1/kbs"), ("DELETE", "/v1/kbs/{kb}"), ("POST", "/v1/kbs/{kb}/points")} <= {
+        (m, t) for m, t, _ in writes
+    }
+    for method, _, path in writes:
+        for headers in ({}, {"Authorization": "Bearer wrong"}, {"Authorization": TOKEN}):
+            response = guarded.request(method, path, json={}, headers=headers)
+            assert response.status_code == 401, (method, path, headers, response.text)
+
+
+def test_reads_stay_open_and_writes_work_with_the_token(guarded: TestClient) -> None:
+    auth = {"Authorization": f"Bearer {TOKEN}"}
+    assert (
+        guarded.post("/v1/kbs/default/points", json={"points": [POINT]}, headers=auth).status_code
+        == 201
+    )
+    for method, template, path in routes(guarded.app):
+        if not is_write(method, template) and method == "GET":
+            assert guarded.get(path).status_code != 401, path
+    assert guarded.get("/v1/kbs").json()[0]["n_points"] == 1
+    assert guarded.delete("/v1/kbs/default").status_code == 401
+    assert guarded.get("/v1/kbs").json()[0]["n_points"] == 1, "a refused delete changed data"
+
+
+def test_auth_reads_guards_every_route_but_health_and_docs(tmp_path: Path) -> None:
+    app = create_app(app_settings(tmp_path / "kb.sqlite", auth_reads=True))
+    with TestClient(app) as client:
+        for method, template, path in routes(app):
+            response = client.request(method, path, json={})
+            if template in OPEN_PATHS:
+                assert response.status_code == 200, path
+            else:
+                assert response.status_code == 401, (method, path)
+        assert (
+            client.get("/v1/kbs", headers={"Authorization": f"Bearer {TOKEN}"}).status_code == 200
+        )
+
+
+def test_unauthenticated_write_does_not_reveal_what_exists(guarded: TestClient) -> None:
+    known = guarded.post("/v1/kbs/default/points", json={"points": [POINT]})
+    unknown = guarded.post("/v1/kbs/no-such-kb/points", json={"points": [POINT]})
+    assert known.status_code == unknown.status_code == 401
+    assert known.json() == unknown.json()
+
+
+@pytest.fixture
+def server_url(tmp_path: Path) -> Iterator[str]:
+    tokens = tmp_path / "tokens"
+    tokens.write_text(f"# lab\n{TOKEN}\nsecond-token\n")
+    env = {"CPKB_TOKENS_FILE": str(tokens)}
+    with embedded_service(f"sqlite:///{tmp_path / 'kb.sqlite'}", env=env) as url:
+        yield url
+
+
+def test_client_sends_its_token_to_a_real_server(server_url: str) -> None:
+    with CpkbClient(server_url, retries=0) as anonymous:
+        assert anonymous.list_kbs()[0].name == "default"
+        with pytest.raises(Unauthorized, match="token"):
+            anonymous.post_points("default", [POINT])
+        with pytest.raises(Unauthorized):
+            anonymous.delete_kb("default")
+    for token in (TOKEN, "second-token"):
+        with CpkbClient(server_url, token=token, retries=0) as client:
+            assert len(client.post_points("default", [POINT])) == 1
+    with (
+        CpkbClient(server_url, token="second-token-", retries=0) as wrong,
+        pytest.raises(Unauthorized, match="invalid token"),
+    ):
+        wrong.create_kb("nope")
+
+
+def test_cli_passes_the_token_from_option_or_environment(
+    server_url: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.delenv("CPKB_TOKEN", raising=False)
+    assert cpkb_main(["kb", "create", "lab1", "--url", server_url]) == 2
+    assert "token" in capsys.readouterr().err
+    assert cpkb_main(["kb", "create", "lab1", "--url", server_url, "--token", TOKEN]) == 0
+    monkeypatch.setenv("CPKB_TOKEN", "second-token")
+    assert cpkb_main(["kb", "delete", "lab1", "--url", server_url]) == 0
+    assert "deleted" in capsys.readouterr().out
+    assert cpkb_main(["kb", "list", "--url", server_url]) == 0
+    assert "lab1" not in capsys.readouterr().out
+
+
+def test_serve_refuses_an_unreadable_tokens_file(tmp_path: Path) -> None:
+    env = {"CPKB_TOKENS_FILE": str(tmp_path / "missing"), "PATH": "/usr/bin:/bin"}
+    db = f"sqlite:///{tmp_path / 'kb.sqlite'}"
+    done = subprocess.run(
+        [sys.executable, "-m", "cpkb", "serve", "--db", db, "--port", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert "tokens file" in done.stderr and "Traceback" not in done.stderr
