@@ -38,6 +38,11 @@ def register(subparsers: Any) -> None:
     demo.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
     demo.add_argument("--predecessor-rollouts", type=int, default=30, help="deskP budget (30)")
     demo.add_argument("--db", metavar="URL", help="database URL (default: the embedded default)")
+    demo.add_argument(
+        "--analytic",
+        action="store_true",
+        help="use the simulator-free analytic desk and deskP (a seconds-long dry run)",
+    )
     demo.set_defaults(handler=_demo)
 
 
@@ -112,4 +117,9 @@ def _demo(args: argparse.Namespace) -> int:
 
     if args.seeds < 1 or args.predecessor_rollouts < 1:
         raise CliError("--seeds and --predecessor-rollouts must be at least 1")
-    return run_demo(seeds=args.seeds, predecessor_rollouts=args.predecessor_rollouts, db=args.db)
+    return run_demo(
+        seeds=args.seeds,
+        predecessor_rollouts=args.predecessor_rollouts,
+        db=args.db,
+        prefix="analytic:" if args.analytic else "",
+    )

@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from operator import attrgetter
 from typing import Protocol
 
 import numpy as np
@@ -22,13 +23,18 @@ from planner.search.tree import (
     UCB_C,
     ChildNode,
     DecisionNode,
+    add_child,
     backup,
     check_alternating,
+    close,
     reward,
     ucb_select,
     widens,
 )
 from planner.world import BindingWorld, TransitionOutcome
+
+_REWARD = attrgetter("reward")
+_VISITS = attrgetter("visits")
 
 
 class SearchObserver(Protocol):
@@ -97,7 +103,7 @@ class PWUCT:
         """Rollouts until the first feasible binding list (or the whole budget)."""
         first: int | None = None
         solutions: list[dict[str, Value]] = []
-        while self.rollout < max_rollouts and not (self.root.dead or self.root.finished):
+        while self.rollout < max_rollouts and not self.root.closed:
             found = self._rollout()
             if found is None:
                 continue
@@ -119,7 +125,7 @@ class PWUCT:
             best_depth=self.best_depth,
             sim_s=self.sim_s,
             sample_s=self.sample_s,
-            exhausted=self.root.dead or self.root.finished,
+            exhausted=self.root.closed,
             solutions=solutions,
         )
 
@@ -137,7 +143,7 @@ class PWUCT:
                     return None
                 child = selected
             child.visits += 1
-            if child.success or not child.outcome.ok:
+            if child.closed:
                 return self._finish(child)
             assert child.next is not None
             node = child.next
@@ -154,12 +160,13 @@ class PWUCT:
         ctx = SampleContext(
             var=node.var,
             path=dict(node.path),
-            siblings=tuple(c.value for c in node.children),
-            sibling_rewards=tuple(c.reward for c in node.children),
-            sibling_visits=tuple(c.visits for c in node.children),
+            siblings=tuple(node.values),
+            sibling_rewards=tuple(map(_REWARD, node.children)),
+            sibling_visits=tuple(map(_VISITS, node.children)),
             depth=node.index,
             rollout=self.rollout + 1,
             rng=self.rng,
+            sibling_matrix=node.value_matrix,
         )
         started = time.perf_counter()
         value = self.sampler.propose(ctx)
@@ -173,12 +180,12 @@ class PWUCT:
         if self.observer is not None:
             self.observer.on_transition(node.index, bindings, outcome, self.rollout + 1)
         child = ChildNode(value, node, outcome)
-        node.children.append(child)
-        if outcome.ok:
-            if node.index + 1 < len(self.decisions):
-                child.next = DecisionNode(
-                    node.index + 1, self.decisions[node.index + 1], bindings, outcome.state, child
-                )
-            else:
-                child.success = True
+        add_child(node, child)
+        if outcome.ok and node.index + 1 < len(self.decisions):
+            child.next = DecisionNode(
+                node.index + 1, self.decisions[node.index + 1], bindings, outcome.state, child
+            )
+        else:
+            child.success = outcome.ok
+            close(child)
         return child

@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from client.models import CategoricalDomain, Value
 from planner.skeleton import DecisionVar, Skeleton
 from planner.world import TransitionOutcome
@@ -29,15 +31,12 @@ class ChildNode:
     reward: float = 0.0
     next: DecisionNode | None = None
     success: bool = False
+    closed: bool = False  # set by `close`: a dead end, a success, or a subtree with nothing left
 
     @property
     def dead(self) -> bool:
-        """A failed transition, or a subtree with nothing left to try."""
+        """A failed transition, or a subtree with nothing left to try and no success in it."""
         return not self.outcome.ok or (self.next is not None and self.next.dead)
-
-    @property
-    def closed(self) -> bool:
-        return self.success or self.dead or (self.next is not None and self.next.finished)
 
 
 @dataclass(eq=False)
@@ -50,6 +49,27 @@ class DecisionNode:
     children: list[ChildNode] = field(default_factory=list)
     visits: int = 0
     reward: float = 0.0
+    n_closed: int = 0
+    values: list[Value] = field(default_factory=list)  # the children's values, in order
+    _matrix: np.ndarray | None = field(default=None, repr=False)
+    _filled: int = field(default=0, repr=False)
+
+    @property
+    def value_matrix(self) -> np.ndarray | None:
+        """The continuous children's values as an `(n, dim)` array (a view); None if categorical."""
+        if self.n_choices is not None:
+            return None
+        n = len(self.values)
+        if self._matrix is None or self._matrix.shape[0] < n:
+            capacity = max(16, 2 * n)
+            matrix = np.empty((capacity, len(self.var.domain.low)))  # type: ignore[union-attr]
+            if n:
+                matrix[:n] = np.asarray(self.values, dtype=float)
+            self._matrix, self._filled = matrix, n
+        elif self._filled < n:
+            self._matrix[self._filled : n] = np.asarray(self.values[self._filled :], dtype=float)
+            self._filled = n
+        return self._matrix[:n]
 
     @property
     def n_choices(self) -> int | None:
@@ -63,14 +83,30 @@ class DecisionNode:
         return limit is not None and len(self.children) >= limit
 
     @property
-    def dead(self) -> bool:
-        """Exhausted (no choice left) and no child leads anywhere."""
-        return self.exhausted and all(c.dead for c in self.children)
+    def closed(self) -> bool:
+        """Exhausted, and every child closed: nothing left to try below this node."""
+        return self.exhausted and self.n_closed == len(self.children)
 
     @property
-    def finished(self) -> bool:
-        """Exhausted and every child closed (some succeeded)."""
-        return self.exhausted and all(c.closed for c in self.children)
+    def dead(self) -> bool:
+        """Closed without any success below."""
+        return self.exhausted and all(c.dead for c in self.children)
+
+
+def add_child(node: DecisionNode, child: ChildNode) -> None:
+    node.children.append(child)
+    node.values.append(child.value)
+
+
+def close(child: ChildNode) -> None:
+    """Mark `child` closed and propagate: a node whose last open child closes, with no choice
+    left, closes the child that leads to it, and so on up."""
+    current: ChildNode | None = child
+    while current is not None and not current.closed:
+        current.closed = True
+        parent = current.parent
+        parent.n_closed += 1
+        current = parent.parent if parent.closed else None
 
 
 def widens(node: DecisionNode, k: float = PW_K) -> bool:
@@ -80,7 +116,7 @@ def widens(node: DecisionNode, k: float = PW_K) -> bool:
     limit = node.n_choices
     if limit is not None and n_children >= limit:
         return False
-    if n_children == 0 or all(c.closed for c in node.children):
+    if node.n_closed == n_children:
         return True
     return node.visits > k * n_children**2
 

@@ -27,6 +27,7 @@ class SampleContext:
     depth: int
     rollout: int
     rng: np.random.Generator
+    sibling_matrix: np.ndarray | None = None  # continuous siblings as an (n, dim) array
 
 
 class Sampler(Protocol):

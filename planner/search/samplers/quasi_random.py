@@ -17,15 +17,22 @@ CANDIDATES_PER_DIM = 10
 
 
 def voronoi_point(
-    domain: ContinuousDomain, siblings: list[list[float]], rng: np.random.Generator
+    domain: ContinuousDomain,
+    siblings: list[list[float]] | np.ndarray,
+    rng: np.random.Generator,
 ) -> list[float]:
     """The farthest of 10 x dim uniform candidates from `siblings` (unit-cube distance)."""
     low = np.asarray(domain.low, dtype=float)
     high = np.asarray(domain.high, dtype=float)
     unit = rng.random((CANDIDATES_PER_DIM * len(low), len(low)))
-    if siblings:
+    if len(siblings):
         existing = (np.asarray(siblings, dtype=float) - low) / (high - low)
-        gaps = np.linalg.norm(unit[:, None, :] - existing[None, :, :], axis=2).min(axis=1)
+        # |u - e|^2 = |u|^2 + |e|^2 - 2 u.e: one matrix product, fast for thousands of siblings
+        gaps = (
+            (unit * unit).sum(1)[:, None]
+            + (existing * existing).sum(1)[None, :]
+            - 2.0 * unit @ existing.T
+        ).min(axis=1)
         best = unit[int(np.argmax(gaps))]
     else:
         best = unit[0]
@@ -46,7 +53,10 @@ def space_filling(ctx: SampleContext) -> Value:
     domain = ctx.var.domain
     if isinstance(domain, CategoricalDomain):
         return untried_choice(domain, list(ctx.siblings), ctx.rng)
-    return voronoi_point(domain, [list(v) for v in ctx.siblings], ctx.rng)
+    siblings = ctx.sibling_matrix
+    if siblings is None:
+        siblings = np.asarray(ctx.siblings, dtype=float).reshape(-1, len(domain.low))
+    return voronoi_point(domain, siblings, ctx.rng)
 
 
 class QuasiRandomSampler:

@@ -10,7 +10,15 @@ from client.models import CategoricalDomain, ContinuousDomain
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler
-from planner.search.tree import ChildNode, DecisionNode, backup, reward, ucb_select, widens
+from planner.search.tree import (
+    ChildNode,
+    DecisionNode,
+    backup,
+    close,
+    reward,
+    ucb_select,
+    widens,
+)
 from planner.skeleton import DecisionVar, OperatorCall
 from planner.world import CheckResult, TransitionOutcome
 
@@ -27,9 +35,11 @@ def node(domain=None) -> DecisionNode:
 
 def add_child(parent: DecisionNode, value, outcome=PASS, visits=1, r=0.0) -> ChildNode:
     child = ChildNode(value, parent, outcome, visits=visits, reward=r)
+    parent.children.append(child)
     if outcome.ok:
         child.next = DecisionNode(1, parent.var, {}, None, child)
-    parent.children.append(child)
+    else:
+        close(child)
     return child
 
 
@@ -65,7 +75,20 @@ def test_a_categorical_decision_stops_at_its_number_of_choices():
     add_child(n, "b", FAIL)
     n.visits = 1000
     assert not widens(n)
-    assert n.exhausted and n.dead
+    assert n.exhausted and n.closed and n.dead
+
+
+def test_closing_propagates_up_through_exhausted_nodes():
+    root = node(CategoricalDomain(choices=["a", "b"]))
+    first = add_child(root, "a")
+    add_child(root, "b", FAIL)
+    assert first.next is not None and not root.closed
+    inner = first.next
+    inner.var = root.var  # categorical, two choices
+    add_child(inner, "a", FAIL)
+    assert not first.closed
+    add_child(inner, "b", FAIL)
+    assert first.closed and first.dead and root.closed and root.dead
 
 
 def test_ucb_trades_reward_against_visits():
