@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from client.models import Value
-from planner.sim.geometry import Pose, derived_seed
+from planner.sim.geometry import Pose, derived_seed, quat_from_axes, rotation
 from planner.sim.grasps import (
     Grasp,
     GraspError,
@@ -111,6 +111,27 @@ def _fail(call: OperatorCall, ex: Execution, reason: str, **detail: float) -> Ch
     return CheckResult(call, False, f"{_text(call)}: {reason}", ex.culprits(), detail)
 
 
+def first_guess(scene: Scene, target: Pose) -> tuple[float, ...]:
+    """A start for IK that is already close: a nominal solution for the same kind of hand pose
+    straight ahead of the robot (hand pointing down, or level with its x axis up or down),
+    with the base joint turned toward the target."""
+    nominal = scene.nominal_ik
+    if not nominal:
+        rng = np.random.default_rng(0)
+        for kind, z, x in (("down", (0, 0, -1), (1, 0, 0)), ("up", (1, 0, 0), (0, 0, 1))):
+            for sign in (1.0, -1.0) if kind == "up" else (1.0,):
+                xa, za = np.asarray(x, float) * sign, np.asarray(z, float)
+                pose = ((0.5, 0.0, 0.15), quat_from_axes(xa, np.cross(za, xa), za))
+                solved = solve_ik(scene, pose, rng, restarts=200, iterations=100, tolerance=1e-3)
+                nominal[(kind, sign)] = solved.q or tuple(scene.task.workspace.robot.home)
+    axes = rotation(target[1])
+    key = ("down", 1.0) if axes[2, 2] < -0.7 else ("up", 1.0 if axes[2, 0] >= 0 else -1.0)
+    guess = list(nominal[key])
+    bearing = math.atan2(target[0][1], target[0][0])
+    guess[0] = float(np.clip(guess[0] + bearing, *scene.joint_range(0)))
+    return tuple(guess)
+
+
 def _body_pose(ex: Execution, body: str, pose_arg: str) -> tuple[Pose, str]:
     if pose_arg.startswith("#"):
         owner, region = ex.pose_sources[pose_arg]
@@ -147,16 +168,13 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
     options = dict(restarts=s.ik_restarts, iterations=s.ik_iterations, tolerance=s.ik_tolerance)
     for grasp in candidates:
         target = tcp_target(grasp, body_pose)
-        # First from the home configuration turned toward the target, then seeded restarts.
-        toward = list(scene.task.workspace.robot.home)
-        toward[0] = float(np.clip(math.atan2(target[0][1], target[0][0]), *scene.joint_range(0)))
         found = solve_ik(
             scene,
             target,
             rng,
             collisions=check,
             tally=ex.tally,
-            first_guess=tuple(toward),
+            first_guess=first_guess(scene, target),
             **options,
         )
         if found.q is not None:

@@ -76,6 +76,8 @@ class Scene:
             self.sizes[body.name] = body.size
             self.set_pose(body.name, self.named_pose(body.pose, body.name))
         self.movable_names = tuple(task.bodies)
+        # Nominal IK solutions by kind of hand pose, filled on first use (planner.sim.operators).
+        self.nominal_ik: dict[tuple[str, float], tuple[float, ...]] = {}
 
     def _register(self, name: str, uid: int) -> None:
         self.ids[name] = uid

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from client.models import Value
 from planner.sim.geometry import Pose
@@ -51,6 +51,12 @@ class PyBulletWorld:
             held=None,
             values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),
         )
+        # Every name a check may report as a culprit, for pre-matching failure graphs.
+        self.culprit_candidates: tuple[str, ...] = (
+            *self.scene.static_names,
+            *self.scene.movable_names,
+            "robot",
+        )
         self.restore(self._initial)
 
     @property
@@ -91,7 +97,10 @@ class PyBulletWorld:
         checks: list[CheckResult] = []
         for call in layers[index].calls:
             ex.tally = CollisionTally()
+            call_start = time.perf_counter()
             result = OPERATORS[call.name](call, ex)
+            seconds = {"seconds": time.perf_counter() - call_start}
+            result = replace(result, detail={**result.detail, **seconds})
             checks.append(result)
             if not result.ok:
                 return TransitionOutcome(tuple(checks), None, time.perf_counter() - started)

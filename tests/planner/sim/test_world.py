@@ -18,7 +18,7 @@ ON_OBSTACLE3 = [0.857, 0.929, 0.5]
 
 @pytest.fixture(scope="module")
 def desk() -> Iterator[PyBulletWorld]:
-    world = load_world("desk", seed=0)
+    world = load_world("desk", seed=1)
     yield world
     world.close()
 
@@ -111,7 +111,7 @@ def _rollout(world: PyBulletWorld, seed: int) -> list[tuple]:
 
 def test_a_seeded_rollout_is_reproducible(desk: PyBulletWorld) -> None:
     first = [_rollout(desk, s) for s in range(4)]
-    again = load_world("desk", seed=0)
+    again = load_world("desk", seed=1)
     try:
         second = [_rollout(again, s) for s in range(4)]
     finally:
