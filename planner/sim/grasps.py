@@ -22,7 +22,7 @@ from planner.sim.motion import Checker, CollisionTally
 from planner.sim.scene import ARM_JOINTS, MAX_FINGER_OPENING, TCP_LINK, Scene
 from planner.tasks import GRASP_APPROACH
 
-FINGER_CLEARANCE = 0.005  # each finger stays this far off the body while open
+FINGER_CLEARANCE = 0.01  # each finger stays this far off the body while open
 TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
 SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
 ORIENTATION_TOLERANCE = 0.01  # radians
