@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 import logging
+import math
+from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError, IntegrityError, OperationalError, SQLAlchemyError
 
@@ -74,5 +78,23 @@ def install_error_handlers(app: FastAPI) -> None:
         assert isinstance(exc, SQLAlchemyError)
         return _answer(map_db_error(exc))
 
+    async def validation_error(_: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, RequestValidationError)
+        detail = _finite(jsonable_encoder(exc.errors()))
+        return JSONResponse({"detail": detail}, status_code=422)
+
     app.add_exception_handler(ServiceError, service_error)
     app.add_exception_handler(SQLAlchemyError, database_error)
+    app.add_exception_handler(RequestValidationError, validation_error)
+
+
+def _finite(value: Any) -> Any:
+    """FastAPI echoes the rejected input; a NaN or infinity in it (json.loads accepts them)
+    would make the answer itself unencodable, so they are echoed as strings."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value

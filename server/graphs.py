@@ -104,13 +104,18 @@ def _digraph(graph: Graph) -> nx.DiGraph:
     return g
 
 
+def _ascii(text: str) -> str:
+    """networkx hashes labels as ASCII: escape the rest (and backslashes, to stay one-to-one)."""
+    return text.replace("\\", "\\\\").encode("ascii", "backslashreplace").decode("ascii")
+
+
 def _wl_graph(graph: Graph) -> nx.DiGraph:
     """The graph to hash: a node per vertex (`role:label`) and per edge (`edge:label`)."""
     g = nx.DiGraph()
     for node in graph.nodes:
-        g.add_node(("v", node.id), wl=f"{node.role}:{node.label}")
+        g.add_node(("v", node.id), wl=_ascii(f"{node.role}:{node.label}"))
     for i, edge in enumerate(graph.edges):
-        g.add_node(("e", i), wl=f"edge:{edge.label}")
+        g.add_node(("e", i), wl=_ascii(f"edge:{edge.label}"))
         g.add_edge(("v", edge.source), ("e", i))
         g.add_edge(("e", i), ("v", edge.target))
     return g
