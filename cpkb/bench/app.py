@@ -94,14 +94,23 @@ def knowledge_service(kb_url: str | None, token: str | None) -> Iterator[Service
     """The shared service if given; else one embedded service on a temporary SQLite file for
     the whole bench (each scenario still gets its own knowledge base, deleted after it)."""
     if kb_url is not None:
+        from client import CpkbClient, CpkbError
+
+        try:
+            with CpkbClient(kb_url, token=token, retries=1) as client:
+                client.health()
+        except CpkbError as exc:
+            raise ValueError(f"no usable cpkb service at {kb_url}: {exc}") from None
         yield ServiceKbs(kb_url, token)
         return
-    from cpkb.embedded import embedded_service
+    from cpkb.embedded import EmbeddedServiceError, embedded_service
 
-    with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp:
-        db_url = f"sqlite:///{Path(tmp) / 'bench.db'}"
-        with embedded_service(db_url) as url:
-            yield ServiceKbs(url)
+    with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp, contextlib.ExitStack() as stack:
+        try:
+            url = stack.enter_context(embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}"))
+        except EmbeddedServiceError as exc:
+            raise ValueError(str(exc)) from None
+        yield ServiceKbs(url)
 
 
 def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> None:
@@ -125,7 +134,13 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
 
 def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
     scenarios = expand(settings.tasks, settings.methods, settings.seeds)
-    with knowledge_service(settings.kb_url, settings.token) as kbs:
+    everything_done = not ResultStore(settings.out_dir).pending(scenarios)
+    service = (
+        contextlib.nullcontext(None)
+        if everything_done  # no service to start just to skip every run
+        else knowledge_service(settings.kb_url, settings.token)
+    )
+    with service as kbs:
         return run_bench(
             scenarios,
             settings.out_dir,

@@ -36,19 +36,20 @@ def test_bad_arguments_are_one_line_errors(
     assert message in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
     out = tmp_path / "out"
     command = [
         sys.executable, "-m", "cpkb", "bench", "--tasks", "analytic:desk",
-        "--methods", "quasi-random,cp-bo-transfer", "--seeds", "2", "--workers", "2",
+        "--methods", "quasi-random,cp-bo-transfer", "--seeds", "1", "--workers", "2",
         "--max-rollouts", "300", "--out", str(out), "--quiet",
     ]  # fmt: skip
     first = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert first.returncode == 0, first.stderr
-    assert "4 runs finished, 0 already done, 0 failed, 0 left" in first.stdout
+    assert "2 runs finished, 0 already done, 0 failed, 0 left" in first.stdout
     runs = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
     assert sorted((r["method"], r["seed"]) for r in runs) == [
-        ("cp-bo-transfer", 0), ("cp-bo-transfer", 1), ("quasi-random", 0), ("quasi-random", 1)
+        ("cp-bo-transfer", 0), ("quasi-random", 0)
     ]  # fmt: skip
     transfer = [r for r in runs if r["method"] == "cp-bo-transfer"]
     assert all(r["predecessors"][0]["task"] == "analytic:deskP" for r in transfer)
@@ -56,13 +57,13 @@ def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
     assert all(r["solved"] for r in runs)
     for name in ("summary.md", "summary.csv", "rollouts.png", "wall_time.png"):
         assert (out / name).stat().st_size > 0
-    assert "| analytic:desk | cp-bo-transfer | 2 |" in (out / "summary.md").read_text()
+    assert "| analytic:desk | cp-bo-transfer | 1 |" in (out / "summary.md").read_text()
 
     again = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
-    assert "0 runs finished, 4 already done" in again.stdout
+    assert "0 runs finished, 2 already done" in again.stdout
     summary = subprocess.run(
-        [*command[:3], "--tasks", "analytic:desk", "--out", str(out), "--summary-only"],
+        [*command[:4], "--tasks", "analytic:desk", "--out", str(out), "--summary-only"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert summary.returncode == 0 and "cp-bo-transfer" in summary.stdout
