@@ -34,6 +34,10 @@ from client.models import (
     PointsIn,
     PointsOut,
     PointsPage,
+    PredictIn,
+    PredictOut,
+    SuggestIn,
+    SuggestOut,
     TypeDetail,
     TypeSummary,
 )
@@ -186,10 +190,10 @@ class CpkbClient:
 
     def export_csv(self, kb: str, type_id: str, path: str | Path | None = None) -> str:
         """The type's table as CSV text (also written to `path` when given)."""
-        text = self.request("GET", f"/v1/kbs/{kb}/types/{type_id}/points.csv").text
+        response = self.request("GET", f"/v1/kbs/{kb}/types/{type_id}/points.csv")
         if path is not None:
-            Path(path).write_text(text, encoding="utf-8")
-        return text
+            Path(path).write_bytes(response.content)
+        return response.text
 
     # -- types -------------------------------------------------------------------------------
 
@@ -204,6 +208,18 @@ class CpkbClient:
 
     def get_type(self, kb: str, type_id: str) -> TypeDetail:
         return self._call(TypeDetail, "GET", f"/v1/kbs/{kb}/types/{type_id}")
+
+    # -- surrogates (issue 3) ----------------------------------------------------------------
+    def suggest(self, kb: str, request: SuggestIn | Mapping[str, Any]) -> SuggestOut:
+        """The MPF suggestion for a search space (see SuggestIn); safe to retry (reads only)."""
+        model = request if isinstance(request, SuggestIn) else SuggestIn.model_validate(request)
+        return self._call(SuggestOut, "POST", f"/v1/kbs/{kb}/suggest", json=self._body(model))
+
+    def predict(self, kb: str, type_id: str, xs: Iterable[Mapping[str, Any]]) -> list[float]:
+        """P(feasible) of each x (decision label -> value) under the type's surrogate."""
+        body = self._body(PredictIn(x=[dict(x) for x in xs]))
+        path = f"/v1/kbs/{kb}/types/{type_id}/predict"
+        return self._call(PredictOut, "POST", path, json=body).p_feasible
 
 
 @cache

@@ -75,22 +75,24 @@ def embedded_service(
     quiet: bool = True,
     start_timeout: float = START_TIMEOUT_S,
     env: dict[str, str] | None = None,
+    log_file: Path | None = None,
 ) -> Iterator[str]:
     """Run `cpkb serve` on a free loopback port; yields its base URL, stops it on exit.
 
     `db_url` defaults to the service's own default (CPKB_DATABASE_URL, else ./cpkb.db).
-    With `quiet`, the service's log goes to a temporary file, quoted if it fails to start.
+    With `quiet`, the service's log goes to `log_file` (default: a temporary file), and its end
+    is quoted if the service fails to start.
     """
     command = [sys.executable, "-m", "cpkb", "serve", "--host", "127.0.0.1"]
     if db_url is not None:
         command += ["--db", db_url]
     child_env = {**os.environ, **(env or {})}
     with tempfile.TemporaryDirectory(prefix="cpkb-embedded-") as tmp:
-        log_path = Path(tmp) / "service.log"
+        log_path = log_file if log_file is not None else Path(tmp) / "service.log"
         for _ in range(3):
             port = free_port()
             url = f"http://127.0.0.1:{port}"
-            with open(log_path, "wb") as log:
+            with open(log_path, "ab") as log:
                 output = log if quiet else None
                 process = subprocess.Popen(
                     [*command, "--port", str(port)],

@@ -7,33 +7,32 @@
 - `db_url`: parametrised over both ("sqlite", "postgres"): a test written once runs on each.
 - `app_client`: a TestClient over `create_app` on `db_url`.
 - `live_server`: `cpkb serve` in a subprocess on a free loopback port, on `db_url`; yields
-  a `LiveServer(url, db_url)`.
+  a `LiveServer(url, db_url, log)` (`log`: the server's output file).
+- `fresh_postgres_database(reason)` and `run_live_server(db_url, log)`: the same as context
+  managers, for fixtures of a wider scope.
 """
 
 from __future__ import annotations
 
-import os
-import uuid
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-
-DEFAULT_TEST_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
-
-
-def _postgres_admin_url() -> str:
-    return os.environ.get("CPKB_TEST_POSTGRES_URL", DEFAULT_TEST_POSTGRES_URL)
+from service_support import (
+    LiveServer,
+    fresh_postgres_database,
+    postgres_admin_url,
+    run_live_server,
+)
 
 
 @pytest.fixture(scope="session")
-def _postgres_reachable() -> str | None:
+def postgres_unreachable_reason() -> str | None:
     """None if reachable, else the reason (checked once per session)."""
     import psycopg
     from sqlalchemy.engine import make_url
 
-    url = make_url(_postgres_admin_url())
+    url = make_url(postgres_admin_url())
     try:
         with psycopg.connect(
             url.set(drivername="postgresql").render_as_string(hide_password=False),
@@ -46,22 +45,9 @@ def _postgres_reachable() -> str | None:
 
 
 @pytest.fixture
-def postgres_url(_postgres_reachable: str | None) -> Iterator[str]:
-    if _postgres_reachable is not None:
-        pytest.skip(_postgres_reachable)
-    import psycopg
-    from sqlalchemy.engine import make_url
-
-    admin = make_url(_postgres_admin_url())
-    admin_dsn = admin.set(drivername="postgresql").render_as_string(hide_password=False)
-    name = f"cpkb_t_{uuid.uuid4().hex[:12]}"
-    with psycopg.connect(admin_dsn, autocommit=True) as conn:
-        conn.execute(f'CREATE DATABASE "{name}"')
-    try:
-        yield admin.set(database=name).render_as_string(hide_password=False)
-    finally:
-        with psycopg.connect(admin_dsn, autocommit=True) as conn:
-            conn.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+def postgres_url(postgres_unreachable_reason: str | None) -> Iterator[str]:
+    with fresh_postgres_database(postgres_unreachable_reason) as url:
+        yield url
 
 
 @pytest.fixture
@@ -85,15 +71,7 @@ def app_client(db_url: str) -> Iterator[object]:
         yield client
 
 
-@dataclass(frozen=True)
-class LiveServer:
-    url: str
-    db_url: str
-
-
 @pytest.fixture
-def live_server(db_url: str) -> Iterator[LiveServer]:
-    from cpkb.embedded import embedded_service
-
-    with embedded_service(db_url) as url:
-        yield LiveServer(url=url, db_url=db_url)
+def live_server(db_url: str, tmp_path: Path) -> Iterator[LiveServer]:
+    with run_live_server(db_url, tmp_path / "server.log") as server:
+        yield server

@@ -1,9 +1,17 @@
-"""Helpers for tests of the knowledge-base service: causal graphs and points to post."""
+"""Helpers for tests of the knowledge-base service: graphs and points to post, fresh
+PostgreSQL databases, live servers (the fixtures in tests/conftest.py wrap these)."""
 
 from __future__ import annotations
 
+import os
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
+
+import pytest
 
 POSE_DOMAIN = {"kind": "continuous", "low": [0.0, 0.0, -3.0], "high": [1.0, 1.0, 3.0]}
 DIR_DOMAIN = {"kind": "categorical", "choices": ["front", "right", "top", "back", "left"]}
@@ -86,3 +94,46 @@ def collision_pair() -> tuple[dict[str, Any], dict[str, Any]]:
         return {"nodes": nodes, "edges": edges}
 
     return graph([[0, 1, 2, 3, 4, 5]]), graph([[0, 1, 2], [3, 4, 5]])
+
+
+DEFAULT_TEST_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+
+
+def postgres_admin_url() -> str:
+    return os.environ.get("CPKB_TEST_POSTGRES_URL", DEFAULT_TEST_POSTGRES_URL)
+
+
+@contextmanager
+def fresh_postgres_database(reason_unreachable: str | None) -> Iterator[str]:
+    """A new, empty database on the test server (its URL), dropped on exit."""
+    if reason_unreachable is not None:
+        pytest.skip(reason_unreachable)
+    import psycopg
+    from sqlalchemy.engine import make_url
+
+    admin = make_url(postgres_admin_url())
+    admin_dsn = admin.set(drivername="postgresql").render_as_string(hide_password=False)
+    name = f"cpkb_t_{uuid.uuid4().hex[:12]}"
+    with psycopg.connect(admin_dsn, autocommit=True) as conn:
+        conn.execute(f'CREATE DATABASE "{name}"')
+    try:
+        yield admin.set(database=name).render_as_string(hide_password=False)
+    finally:
+        with psycopg.connect(admin_dsn, autocommit=True) as conn:
+            conn.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+@dataclass(frozen=True)
+class LiveServer:
+    url: str
+    db_url: str
+    log: Path
+
+
+@contextmanager
+def run_live_server(db_url: str, log: Path) -> Iterator[LiveServer]:
+    """`cpkb serve` on `db_url` in a subprocess, its output appended to `log`."""
+    from cpkb.embedded import embedded_service
+
+    with embedded_service(db_url, log_file=log) as url:
+        yield LiveServer(url=url, db_url=db_url, log=log)

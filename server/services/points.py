@@ -132,9 +132,13 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
         kb_pk = kb_id(session, kb)
         types = _types(session, kb_pk, resolved)
         now = utcnow()
+        announced: set[str] = set()
         for graph, row in zip(resolved, rows, strict=True):
             type_pk, created = types[graph.type_id]
-            row.update(kb_id=kb_pk, type_pk=type_pk, new_type=created, created_at=now)
+            # Only the first point of a type this post created says so.
+            new_type = created and graph.type_id not in announced
+            announced.add(graph.type_id)
+            row.update(kb_id=kb_pk, type_pk=type_pk, new_type=new_type, created_at=now)
 
         keyed: dict[str, dict[str, Any]] = {}
         for row in rows:
