@@ -33,6 +33,7 @@ class FailureGraph:
     graph: Graph
     bind: dict[str, str]
     check: tuple[int, int]
+    culprit: str | None = None
 
     def x(self, bindings: dict) -> dict:
         """The point for this graph's type: the values of its decision vertexes."""
@@ -148,7 +149,7 @@ def failure_graph(
             builder.edge(builder.decision(placing), body_id, "at")
     bind = label_decisions(skeleton, builder.nodes, builder.decisions)
     graph = _task_independent_ids(builder.nodes, builder.edges)
-    return FailureGraph(graph=graph, bind=bind, check=(transition_index, call_index))
+    return FailureGraph(graph, bind, (transition_index, call_index), body)
 
 
 def _task_independent_ids(nodes: dict[str, Node], edges: list[Edge]) -> Graph:

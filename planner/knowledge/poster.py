@@ -24,22 +24,33 @@ class PointPoster:
     def __init__(self, post: PostFn, *, background: bool = True) -> None:
         self._post = post
         self._background = background
-        self._queue: queue.Queue[list[PointIn] | None] = queue.Queue()
+        self._queue: queue.Queue[tuple[int, list[PointIn]] | None] = queue.Queue()
+        self.submitted = 0  # batches handed over so far; a batch's number is its rank
+        self.done = 0  # batches sent (or given up), in order
         self.posted = 0
         self.failed = 0
         self.post_s = 0.0
+        self._sent = threading.Condition()
         self._thread: threading.Thread | None = None
         if background:
             self._thread = threading.Thread(target=self._drain, name="cpkb-poster", daemon=True)
             self._thread.start()
 
-    def submit(self, points: list[PointIn]) -> None:
+    def submit(self, points: list[PointIn]) -> int:
+        """Hand over one batch; returns its number (`done >= number` once it is sent)."""
         if not points:
-            return
+            return self.submitted
+        self.submitted += 1
         if self._background:
-            self._queue.put(points)
+            self._queue.put((self.submitted, points))
         else:
-            self._send(points)
+            self._send(self.submitted, points)
+        return self.submitted
+
+    def wait_for(self, number: int) -> None:
+        """Block until batch `number` has been sent (or given up)."""
+        with self._sent:
+            self._sent.wait_for(lambda: self.done >= number or self._thread is None)
 
     def close(self) -> None:
         """Wait until every submitted batch is posted (or has failed for good)."""
@@ -50,9 +61,10 @@ class PointPoster:
 
     def _drain(self) -> None:
         while True:
-            batch = self._queue.get()
-            if batch is None:
+            item = self._queue.get()
+            if item is None:
                 return
+            number, batch = item
             # Merge whatever else is waiting into one request: fewer round trips under load.
             while True:
                 try:
@@ -60,12 +72,13 @@ class PointPoster:
                 except queue.Empty:
                     break
                 if more is None:
-                    self._send(batch)
+                    self._send(number, batch)
                     return
-                batch.extend(more)
-            self._send(batch)
+                number = more[0]
+                batch.extend(more[1])
+            self._send(number, batch)
 
-    def _send(self, points: list[PointIn]) -> None:
+    def _send(self, number: int, points: list[PointIn]) -> None:
         started = time.perf_counter()
         try:
             for start in range(0, len(points), 500):
@@ -76,3 +89,6 @@ class PointPoster:
             log.warning("posting %d points failed: %s", len(points), exc)
         finally:
             self.post_s += time.perf_counter() - started
+            with self._sent:
+                self.done = number
+                self._sent.notify_all()

@@ -38,13 +38,16 @@ from planner.world import BindingWorld, CheckResult, TransitionOutcome
 
 
 class KnowledgeClient(Protocol):
-    """The three calls of `client.CpkbClient` the planner needs."""
+    """The calls of `client.CpkbClient` the planner needs."""
 
     def post_points(self, kb: str, points: Sequence[PointIn]) -> Any: ...
 
     def match_types(self, kb: str, graphs: Sequence[Graph]) -> list[MatchResult]: ...
 
     def suggest(self, kb: str, request: SuggestIn) -> SuggestOut: ...
+
+
+Key = tuple[int, int, str | None]  # (transition index, call index, culprit body)
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,7 @@ class Activation:
     failure: FailureGraph
     transferred: bool
     n_points: int
+    stored_with: int = 0  # a new type exists in the service once this batch has been posted
 
     @property
     def vars(self) -> frozenset[str]:
@@ -98,11 +102,11 @@ class KnowledgeSession:
         self.worker = worker
         self.stats = KnowledgeStats()
         self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
-        self._graphs: dict[tuple[int, int, str | None], FailureGraph] = {}
-        self._active: dict[tuple[int, int, str | None], Activation] = {}
+        self._graphs: dict[Key, FailureGraph] = {}
+        self._active: dict[Key, Activation] = {}
         self._by_check: dict[tuple[int, int], list[Activation]] = {}
         self._pending: list[tuple[FailureGraph, dict[str, Value], bool]] = []
-        self._unmatched: dict[tuple[int, int, str | None], FailureGraph] = {}
+        self._unmatched: dict[Key, FailureGraph] = {}
         self._rollout = 0
 
     # -- activation ---------------------------------------------------------------------------
@@ -120,9 +124,7 @@ class KnowledgeSession:
         found = self._match(only_existing=True)
         self.stats.prematched = found
 
-    def _graph(
-        self, key: tuple[int, int, str | None], t: int, check: CheckResult, culprit: str | None
-    ) -> FailureGraph:
+    def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
         if key not in self._graphs:
             self._graphs[key] = failure_graph(self.skeleton, t, check, culprit)
         return self._graphs[key]
@@ -150,9 +152,10 @@ class KnowledgeSession:
             activated += int(result.exists)
         return activated
 
-    def _activate(self, key, fg: FailureGraph, result: MatchResult) -> None:
+    def _activate(self, key: Key, fg: FailureGraph, result: MatchResult) -> None:
         transferred = result.exists and result.n_points > 0
-        activation = Activation(result.type_id, fg, transferred, result.n_points)
+        stored_with = 0 if result.exists else self.poster.submitted + 1
+        activation = Activation(result.type_id, fg, transferred, result.n_points, stored_with)
         self._active[key] = activation
         self._by_check.setdefault(fg.check, []).append(activation)
         self.stats.types_active += 1
@@ -209,6 +212,12 @@ class KnowledgeSession:
         for activation in self._active.values():
             if var not in activation.vars or not activation.vars <= known:
                 continue
+            if activation.stored_with > self.poster.done:
+                # A type met in this run exists once its first point is stored: wait for that
+                # batch, so that when a type starts guiding does not depend on timing.
+                started = time.perf_counter()
+                self.poster.wait_for(activation.stored_with)
+                self.stats.kb_s += time.perf_counter() - started
             bind = tuple(sorted(activation.failure.bind.items()))
             if (activation.type_id, bind) in seen:
                 continue

@@ -88,10 +88,31 @@ class AnalyticWorld:
         return TransitionOutcome(tuple(results), state=None)
 
 
-def _shelf(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
-    """Reachable shelf placements: a disc of radius 0.1 in (x, y) (~3% of the square)."""
+SHELF_CENTRE = (0.65, 0.35)
+SHELF_RADIUS = 0.25
+MOTION_CLEARANCE_Y = 0.4
+
+
+def _shelf_reach(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
+    """IK on the shelf: reachable inside a disc in (x, y) (~20% of the square), else the arm
+    hits the shelf."""
     x, y, _ = bindings["#pose12"]
-    return None if (x - 0.85) ** 2 + (y - 0.2) ** 2 < 0.1**2 else ("shelf",)
+    inside = (x - SHELF_CENTRE[0]) ** 2 + (y - SHELF_CENTRE[1]) ** 2 < SHELF_RADIUS**2
+    return None if inside else ("shelf",)
+
+
+def _shelf_motion(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
+    """The motion to a reachable placement passes only beyond obstacle3 (y >= 0.4): the
+    feasible placements are a segment of the disc, ~7% of the square."""
+    return None if bindings["#pose12"][1] >= MOTION_CLEARANCE_Y else ("obstacle3",)
+
+
+def shelf_reachable(pose: list[float]) -> bool:
+    return _shelf_reach({"#pose12": pose}) is None
+
+
+def shelf_feasible(pose: list[float]) -> bool:
+    return shelf_reachable(pose) and _shelf_motion({"#pose12": pose}) is None
 
 
 def _grasp_blocked(blocked: dict[str, tuple[str, ...]]) -> Check:
@@ -103,15 +124,20 @@ def _grasp_blocked(blocked: dict[str, tuple[str, ...]]) -> Check:
 
 def analytic_world(task: str) -> AnalyticWorld:
     """`desk` or `deskP`: both place `body` on the shelf region `region2`."""
-    candidates = ("obstacle1", "obstacle2", "shelf")
+    candidates = ("obstacle1", "obstacle2", "obstacle3", "shelf")
     if task == "desk":
         checks = {
             (0, 0): _grasp_blocked({"right": ("obstacle2",), "back": ()}),
             (0, 1): _grasp_blocked({"left": ("obstacle1",)}),
-            (1, 0): _shelf,
+            (1, 0): _shelf_reach,
+            (1, 1): _shelf_motion,
         }
         return AnalyticWorld("desk", pick_place_skeleton("pose0", "region2"), checks, candidates)
     if task == "deskP":
-        checks = {(0, 0): _grasp_blocked({"back": ()}), (1, 0): _shelf}
+        checks = {
+            (0, 0): _grasp_blocked({"back": ()}),
+            (1, 0): _shelf_reach,
+            (1, 1): _shelf_motion,
+        }
         return AnalyticWorld("deskP", pick_place_skeleton("poseP", "region2"), checks, candidates)
     raise ValueError(f"unknown analytic task {task!r}: desk or deskP")

@@ -8,7 +8,7 @@ import pytest
 
 from client.models import CategoricalDomain, ContinuousDomain
 from planner.search import PWUCT
-from planner.search.analytic import analytic_world
+from planner.search.analytic import analytic_world, shelf_feasible
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from planner.search.tree import (
     ChildNode,
@@ -133,8 +133,7 @@ def test_search_finds_a_feasible_binding_and_counts_rollouts():
     world = analytic_world("desk")
     result = PWUCT(world, QuasiRandomSampler(), seed=3).run(2000)
     assert result.solved and result.bindings is not None
-    x, y, _ = result.bindings["#pose12"]
-    assert (x - 0.85) ** 2 + (y - 0.2) ** 2 < 0.01
+    assert shelf_feasible(result.bindings["#pose12"])
     assert result.bindings["#dir1"] in ("front", "top")
     assert result.rollouts == result.rollouts_spent >= 1
     assert world.calls >= result.rollouts
