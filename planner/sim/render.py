@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -96,23 +97,23 @@ def replay(
 def _animate(
     world: PyBulletWorld, before: SimState, outcome: TransitionOutcome, delay: float
 ) -> None:
+    """Show the trajectories of a successful transition layer, waypoint by waypoint."""
+    if not isinstance(outcome.state, SimState):
+        return
     scene = world.scene
+    values = dict(outcome.state.values)
     world.restore(before)
     held = before.held
-    done = dict(before.values)
     for check in outcome.checks:
-        if not check.ok or check.call.name not in ("Move-Pick", "Move-Place"):
+        if check.call.name not in ("Move-Pick", "Move-Place"):
             continue
-        traj = outcome.state.values if outcome.state else ()  # type: ignore[union-attr]
-        found = dict(traj).get(check.call.args[1]) or done.get(check.call.args[1])
-        if not isinstance(found, Trajectory):
-            continue
-        for a, b in zip(found.waypoints, found.waypoints[1:], strict=False):
+        trajectory = values[check.call.args[1]]
+        assert isinstance(trajectory, Trajectory)
+        for a, b in itertools.pairwise(trajectory.waypoints):
             for q in interpolate(a, b, 0.02):
                 scene.set_arm(q)
                 if held is not None:
                     scene.set_pose(held.body, carried_pose(scene, held))
                 time.sleep(delay)
-        held = found.goal.grasp if check.call.name == "Move-Pick" else None
-    if outcome.state is not None:
-        world.restore(outcome.state)
+        held = trajectory.goal.grasp if check.call.name == "Move-Pick" else None
+    world.restore(outcome.state)
