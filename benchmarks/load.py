@@ -143,6 +143,7 @@ async def planner(
     tally: Tally,
     seed: int,
     think_s: float,
+    ask: bool,
 ) -> None:
     rng = random.Random(seed)
     suggest_body_base = {
@@ -156,7 +157,9 @@ async def planner(
     while time.monotonic() < deadline:
         seq += 1
         body = {**suggest_body_base, "seed": rng.randrange(2**31)}
-        answer = await _call(http, tally, "suggest", "POST", f"/v1/kbs/{kb}/suggest", body)
+        answer = None
+        if ask:
+            answer = await _call(http, tally, "suggest", "POST", f"/v1/kbs/{kb}/suggest", body)
         if answer is not None:
             tally.suggestions += 1
             x = answer.json()["x"]
@@ -226,7 +229,17 @@ async def run_load(base_url: str, args: argparse.Namespace, token: str | None) -
         deadline = start + args.duration
         await asyncio.gather(
             *(
-                planner(http, kb, type_ids, f"w{i:02d}", deadline, tally, args.seed + i, args.think)
+                planner(
+                    http,
+                    kb,
+                    type_ids,
+                    f"w{i:02d}",
+                    deadline,
+                    tally,
+                    args.seed + i,
+                    args.think,
+                    not args.no_suggest,
+                )
                 for i in range(args.planners)
             )
         )
@@ -387,6 +400,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--url", help="use this running server instead of starting one")
     parser.add_argument("--token", default=None, help="bearer token for the server")
     parser.add_argument("--seed-points", type=int, default=100, help="points per type first")
+    parser.add_argument(
+        "--no-suggest", action="store_true", help="post points only (ingest under concurrency)"
+    )
     parser.add_argument("--think", type=float, default=0.0, help="seconds between calls")
     parser.add_argument("--timeout", type=float, default=30.0, help="per-request seconds")
     parser.add_argument("--seed", type=int, default=0)
@@ -396,7 +412,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--planners must be between 1 and 256")
     args.out.mkdir(parents=True, exist_ok=True)
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    stem = f"load-{args.backend}-{args.planners}p-{stamp}"
+    mode = "-postonly" if args.no_suggest else ""
+    stem = f"load-{args.backend}-{args.planners}p{mode}-{stamp}"
     if args.url:
         result = asyncio.run(run_load(args.url.rstrip("/"), args, args.token))
     else:
@@ -410,8 +427,13 @@ def main(argv: list[str] | None = None) -> int:
         "planners": args.planners,
         "duration_s": args.duration,
         "seed_points_per_type": args.seed_points,
+        "suggest": not args.no_suggest,
         "command": " ".join(["benchmarks/load.py", *(argv or sys.argv[1:])]),
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "loadavg_1m_after": os.getloadavg()[0],
+        },
         "when": stamp,
         **result,
     }
