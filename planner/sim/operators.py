@@ -181,7 +181,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             break
     if found.q is None:
         ex.settle()
-        if found.in_collision:
+        if ex.tally.counts:  # some restart reached the pose, but in collision
             return _fail(call, ex, f"every IK solution collides with {ex.collision_text()}")
         return _fail(
             call,
@@ -198,7 +198,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
     )
     ex.settle()
     if pre.q is None:
-        if pre.in_collision:
+        if ex.tally.counts:
             what = f"collides with {ex.collision_text()}"
         else:
             what = f"is out of reach (best error {pre.position_error:.3f} m)"

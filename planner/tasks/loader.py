@@ -382,6 +382,13 @@ def load_task_file(path: Path) -> Task:
             raise r.fail(f"goal[{i}]", f"expected 'On(body, region)', got {g!r}")
         if m.group(2) not in bodies or m.group(3) not in workspace.regions:
             raise r.fail(f"goal[{i}]", f"{g!r} names an unknown body or region")
+        placements = {c.args for layer in layers for c in layer.calls if c.name == "Sample-pose"}
+        if (m.group(2), m.group(3)) not in placements:
+            raise r.fail(
+                f"goal[{i}]",
+                f"no Sample-pose({m.group(2)}, {m.group(3)}) in the skeleton puts "
+                f"{m.group(2)} in {m.group(3)}",
+            )
         goals.append(Goal(m.group(1), m.group(2), m.group(3)))
     settings_raw = r.mapping(data.get("settings") or {}, "settings")
     defaults = PlannerSettings()

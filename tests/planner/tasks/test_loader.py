@@ -88,6 +88,7 @@ def test_a_user_file_loads_by_path(tmp_path: Path) -> None:
             "positive",
         ),
         ("workspace: tabletop", "workspace: nowhere", "workspace", "no workspace"),
+        ('goal: ["On(body, region3)"]', 'goal: ["On(body, region2)"]', "goal[0]", "no Sample-pose"),
     ],
 )
 def test_a_mistake_names_the_file_and_the_field(
