@@ -110,7 +110,7 @@ def knowledge_service(kb_url: str | None, token: str | None) -> Iterator[Service
             url = stack.enter_context(embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}"))
         except EmbeddedServiceError as exc:
             raise ValueError(str(exc)) from None
-        yield ServiceKbs(url)
+        yield ServiceKbs(url, token)  # the embedded service reads CPKB_TOKEN too
 
 
 def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> None:

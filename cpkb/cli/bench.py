@@ -86,7 +86,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a running cpkb service to share; default: one embedded service for the whole "
         "bench on a temporary SQLite file (a fresh knowledge base per scenario either way)",
     )
-    parser.add_argument("--token", default=None, help="bearer token for --kb-url")
+    parser.add_argument("--token", default=None, help="access token (default: CPKB_TOKEN)")
     parser.add_argument("--max-rollouts", type=_positive_int, default=2000)
     parser.add_argument("--predecessor-rollouts", type=_positive_int, default=30)
     parser.add_argument(
@@ -104,6 +104,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     from cpkb.bench.app import BenchSettings, run_command
+    from server.settings import Settings
+
+    configured = Settings().token
+    token = args.token or (configured.get_secret_value() if configured is not None else None)
 
     settings = BenchSettings(
         tasks=args.tasks,
@@ -112,7 +116,7 @@ def handle(args: argparse.Namespace) -> int:
         workers=args.workers,
         out_dir=args.out,
         kb_url=args.kb_url,
-        token=args.token,
+        token=token,
         max_rollouts=args.max_rollouts,
         predecessor_rollouts=args.predecessor_rollouts,
         time_limit_s=args.time_limit,
