@@ -9,21 +9,13 @@ from contextlib import asynccontextmanager
 from fastapi import Depends, FastAPI
 
 from cpkb import __version__
-from migrations import upgrade
 from server.api import INSTALLERS, ROUTERS
 from server.db import Store
 from server.errors import install_error_handlers
 from server.hooks import ServiceHooks
+from server.schema import prepare_database
 from server.security import authorize, install_security
-from server.services.kbs import DEFAULT_KB, ensure_kb
 from server.settings import Settings
-
-
-def prepare_database(store: Store) -> None:
-    """Migrate to head and create the `default` knowledge base (idempotent, race-safe)."""
-    upgrade(store.engine)
-    with store.transaction(write=True) as session:
-        ensure_kb(session, DEFAULT_KB)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

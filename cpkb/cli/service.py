@@ -86,8 +86,8 @@ def _open_store(url: str) -> Any:
 def _prepare(store: Any, url: str) -> None:
     from sqlalchemy.exc import SQLAlchemyError
 
-    from server.app import prepare_database
     from server.errors import ServiceError
+    from server.schema import prepare_database
 
     try:
         prepare_database(store)
@@ -99,17 +99,19 @@ def _prepare(store: Any, url: str) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
+    settings = _settings(
+        database_url=args.db, host=args.host, port=args.port, log_level=args.log_level
+    )
+    # Check the database before importing the web stack (and the surrogates' torch).
+    store = _open_store(settings.database_url)
+    _prepare(store, settings.database_url)
+    store.dispose()
+
     import uvicorn
 
     from server.app import create_app
     from server.security import SecurityConfigError
 
-    settings = _settings(
-        database_url=args.db, host=args.host, port=args.port, log_level=args.log_level
-    )
-    store = _open_store(settings.database_url)
-    _prepare(store, settings.database_url)
-    store.dispose()
     try:
         app = create_app(settings)
     except SecurityConfigError as exc:
@@ -159,8 +161,15 @@ def _run(args: argparse.Namespace, call: Any) -> Any:
             raise CliError(str(exc.detail)) from exc
 
 
-def _kb_list(args: argparse.Namespace) -> int:
+def _console() -> Any:
+    """A rich console; when piped, wide enough that rows stay whole lines (grep-able)."""
     from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=240)
+
+
+def _kb_list(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     kbs = _run(args, lambda c: c.list_kbs())
@@ -168,7 +177,7 @@ def _kb_list(args: argparse.Namespace) -> int:
     for kb in kbs:
         created = kb.created_at.strftime("%Y-%m-%d %H:%M") if kb.created_at else ""
         table.add_row(kb.name, str(kb.n_types), str(kb.n_points), created)
-    Console().print(table)
+    _console().print(table)
     return 0
 
 
@@ -192,11 +201,10 @@ def _kb_delete(args: argparse.Namespace) -> int:
 
 
 def _types(args: argparse.Namespace) -> int:
-    from rich.console import Console
     from rich.table import Table
 
     types = _run(args, lambda c: c.list_types(args.kb))
-    console = Console()
+    console = _console()
     if not types:
         console.print(f"knowledge base {args.kb!r} has no types yet")
         return 0

@@ -1,0 +1,78 @@
+"""`cpkb serve`, `cpkb kb ...`, `cpkb types`: a real server, restarted, seen through the CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from service_support import make_graph, make_point, run_live_server
+
+from client import CpkbClient
+from cpkb.embedded import free_port
+
+
+def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "cpkb", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+    )
+
+
+def test_points_survive_a_restart_and_show_in_cpkb_types(db_url: str, tmp_path: Path) -> None:
+    log = tmp_path / "server.log"
+    graphs = [make_graph(), make_graph(failure="Plan-motion", context=("shelf", "box2"))]
+    with run_live_server(db_url, log) as server, CpkbClient(server.url) as client:
+        client.create_kb("lab")
+        posted = client.post_points("lab", [make_point(i, graph=graphs[i % 2]) for i in range(30)])
+        before = {t.type_id: t.n_points for t in client.list_types("lab")}
+        points_before = {t: list(client.iter_points("lab", t)) for t in before}
+
+    with run_live_server(db_url, log) as server:
+        with CpkbClient(server.url) as client:
+            assert {t.type_id: t.n_points for t in client.list_types("lab")} == before
+            assert {t: list(client.iter_points("lab", t)) for t in before} == points_before
+            assert sorted(r.point_id for r in posted) == sorted(
+                p.point_id for ps in points_before.values() for p in ps
+            )
+        table = cpkb("types", "--kb", "lab", "--url", server.url)
+        assert table.returncode == 0, table.stderr
+        assert "Plan-motion" in table.stdout and "Inv-kin" in table.stdout
+        assert "box2" in table.stdout and "15" in table.stdout
+        for type_id in before:
+            assert type_id in table.stdout
+
+        assert cpkb("kb", "create", "scratch", "--url", server.url).returncode == 0
+        listing = cpkb("kb", "list", "--url", server.url)
+        assert "scratch" in listing.stdout and "lab" in listing.stdout and "30" in listing.stdout
+        assert cpkb("kb", "delete", "scratch", "--url", server.url).returncode == 0
+        assert "scratch" not in cpkb("kb", "list", "--url", server.url).stdout
+
+        unknown = cpkb("types", "--kb", "nope", "--url", server.url)
+        assert unknown.returncode == 2
+        assert unknown.stderr.strip() == "cpkb types: error: knowledge base 'nope' not found"
+        taken = cpkb("kb", "create", "lab", "--url", server.url)
+        assert taken.returncode == 2 and "already exists" in taken.stderr
+
+
+def test_unreachable_server_is_one_line_exit_2() -> None:
+    out = cpkb("types", "--url", f"http://127.0.0.1:{free_port()}")
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1 and "cannot reach the knowledge base" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_serve_with_a_bad_database_is_one_line_exit_2(tmp_path: Path) -> None:
+    for url in ("mysql://nobody@127.0.0.1/x", "postgresql+psycopg://postgres@127.0.0.1:1/x"):
+        out = cpkb("serve", "--db", url, "--port", str(free_port()), cwd=tmp_path)
+        assert out.returncode == 2, out.stderr
+        assert out.stderr.startswith("cpkb serve: error: ") and "Traceback" not in out.stderr
+
+
+def test_db_upgrade_defaults_to_cpkb_db_in_the_current_directory(tmp_path: Path) -> None:
+    out = cpkb("db", "upgrade", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "cpkb.db").exists()
