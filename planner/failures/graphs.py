@@ -66,9 +66,15 @@ class _Builder:
         return node_id
 
     def edge(self, source: str, target: str, label: str) -> None:
-        candidate = Edge(source=source, target=target, label=label)
-        if candidate not in self.edges:
-            self.edges.append(candidate)
+        """One edge per ordered pair (the contract has no parallel edges): a second relation
+        between the same vertexes joins the label, e.g. `arg0+collides` for a held body that is
+        also the culprit."""
+        for i, existing in enumerate(self.edges):
+            if (existing.source, existing.target) == (source, target):
+                labels = sorted({*existing.label.split("+"), label})
+                self.edges[i] = Edge(source=source, target=target, label="+".join(labels))
+                return
+        self.edges.append(Edge(source=source, target=target, label=label))
 
     def consume(self, call: OperatorCall, target: str) -> None:
         """Link every argument of `call` into `target`, backtracking `#` variables."""

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from client.errors import BadRequest
 from client.models import (
     Constraint,
     Graph,
@@ -137,7 +138,9 @@ class KnowledgeSession:
         graphs = [self._unmatched[k].graph for k in keys]
         started = time.perf_counter()
         try:
-            results = self.client.match_types(self.kb, graphs)
+            results: list[MatchResult | None] = list(self.client.match_types(self.kb, graphs))
+        except BadRequest:
+            results = [self._match_one(graph) for graph in graphs]
         except Exception as exc:  # a knowledge-base outage must not stop the search
             self.stats.event(f"match failed: {exc}")
             return 0
@@ -146,11 +149,19 @@ class KnowledgeSession:
         activated = 0
         for key, result in zip(keys, results, strict=True):
             fg = self._unmatched.pop(key)
-            if only_existing and not result.exists:
+            if result is None or (only_existing and not result.exists):
                 continue
             self._activate(key, fg, result)
             activated += int(result.exists)
         return activated
+
+    def _match_one(self, graph: Graph) -> MatchResult | None:
+        """One graph alone, so that a graph the service rejects does not block the others."""
+        try:
+            return self.client.match_types(self.kb, [graph])[0]
+        except BadRequest as exc:
+            self.stats.event(f"graph rejected: {exc}")
+            return None
 
     def _activate(self, key: Key, fg: FailureGraph, result: MatchResult) -> None:
         transferred = result.exists and result.n_points > 0

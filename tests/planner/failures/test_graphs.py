@@ -135,3 +135,14 @@ def test_a_culprit_placed_by_an_earlier_decision_links_to_that_decision():
     edges = {(e.source, e.target, e.label) for e in fg.graph.edges}
     assert ("d:#pose", "c:body", "at") in edges
     assert fg.bind["#pose"] == "#pose13"
+
+
+def test_a_culprit_that_is_also_an_argument_gives_one_edge_with_both_relations():
+    skeleton = pick_place_skeleton("pose0", "region2")
+    call = skeleton.transitions[0].calls[0]  # Inv-kin(body, pose0, #dir1)
+    fg = failure_graph(skeleton, 0, CheckResult(call, False, culprits=(Culprit("body", 0.01),)))
+    pairs = [(e.source, e.target) for e in fg.graph.edges]
+    assert len(pairs) == len(set(pairs))
+    assert ("c:body", "failure", "arg0+collides") in {
+        (e.source, e.target, e.label) for e in fg.graph.edges
+    }
