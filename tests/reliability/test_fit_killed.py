@@ -126,13 +126,13 @@ def test_killed_fits_leave_complete_models(sqlite_url: str, tmp_path: Path) -> N
     server.start()
     try:
         with httpx.Client(base_url=server.url, timeout=60) as http:
-            posted = http.post("/v1/kbs/default/points", json=batch(0, 200))
+            posted = http.post("/v1/kbs/default/points", json=batch(0, 100))
             type_id = posted.json()["results"][0]["type_id"]
-            first = wait_fitted(http, type_id, 200)
+            first = wait_fitted(http, type_id, 100)
             before = predict(http, type_id)
 
             # 1. The fit worker dies half-way through the next fit.
-            assert http.post("/v1/kbs/default/points", json=batch(200, 600)).status_code == 201
+            assert http.post("/v1/kbs/default/points", json=batch(100, 300)).status_code == 201
             wait_fitting(http, type_id)
             assert server.proc is not None
             workers = fit_workers(server.proc.pid)
@@ -142,22 +142,22 @@ def test_killed_fits_leave_complete_models(sqlite_url: str, tmp_path: Path) -> N
             during = predict(http, type_id)
             state = surrogate(http, type_id)
             assert state["status"] in ("fitting", "ready"), state
-            assert state["n_fitted"] in (first["n_fitted"], 800), state
+            assert state["n_fitted"] in (first["n_fitted"], 400), state
             if state["n_fitted"] == first["n_fitted"]:
                 assert during == before, "a half-done fit replaced the model"
-            wait_fitted(http, type_id, 800)
+            wait_fitted(http, type_id, 400)
             assert not set(workers) & set(fit_workers(server.proc.pid)), "worker not replaced"
             predict(http, type_id)
             suggest_works(http, type_id)
 
             # 2. The whole server dies half-way through a fit.
-            assert http.post("/v1/kbs/default/points", json=batch(800, 400)).status_code == 201
+            assert http.post("/v1/kbs/default/points", json=batch(400, 100)).status_code == 201
             wait_fitting(http, type_id)
         server.kill()
         server.start()
         with httpx.Client(base_url=server.url, timeout=60) as http:
             predict(http, type_id)
-            wait_fitted(http, type_id, 1200)
+            wait_fitted(http, type_id, 500)
             suggest_works(http, type_id)
     finally:
         server.stop()

@@ -4,13 +4,11 @@ setting, and the client, the CLI and `cpkb serve` handle it, against a real serv
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from fastapi.routing import APIRoute
+from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from client import CpkbClient, Unauthorized
@@ -41,15 +39,13 @@ def app_settings(db: Path, **overrides: object) -> Settings:
     return Settings(**(base | overrides))
 
 
-def routes(app) -> list[tuple[str, str]]:
-    """Every (method, concrete path) of the app's API routes, path parameters filled in."""
+def routes(app: FastAPI) -> list[tuple[str, str, str]]:
+    """Every (method, path template, concrete path) of the app's documented API."""
     found = []
-    for route in app.routes:
-        if not isinstance(route, APIRoute):
-            continue
-        path = re.sub(r"\{kb\}", "default", route.path)
+    for template, operations in app.openapi()["paths"].items():
+        path = template.replace("{kb}", "default")
         path = re.sub(r"\{[^}]+\}", "0123abcd", path)
-        found += [(method, route.path, path) for method in sorted(route.methods)]
+        found += [(method.upper(), template, path) for method in operations]
     return found
 
 
@@ -105,12 +101,14 @@ def test_unauthenticated_write_does_not_reveal_what_exists(guarded: TestClient) 
     assert known.json() == unknown.json()
 
 
-@pytest.fixture
-def server_url(tmp_path: Path) -> Iterator[str]:
-    tokens = tmp_path / "tokens"
+@pytest.fixture(scope="module")
+def server_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """One real server for the module (a start costs seconds), guarded by a tokens file."""
+    tmp = tmp_path_factory.mktemp("guarded")
+    tokens = tmp / "tokens"
     tokens.write_text(f"# lab\n{TOKEN}\nsecond-token\n")
     env = {"CPKB_TOKENS_FILE": str(tokens)}
-    with embedded_service(f"sqlite:///{tmp_path / 'kb.sqlite'}", env=env) as url:
+    with embedded_service(f"sqlite:///{tmp / 'kb.sqlite'}", env=env) as url:
         yield url
 
 
@@ -145,15 +143,16 @@ def test_cli_passes_the_token_from_option_or_environment(
     assert "lab1" not in capsys.readouterr().out
 
 
-def test_serve_refuses_an_unreadable_tokens_file(tmp_path: Path) -> None:
-    env = {"CPKB_TOKENS_FILE": str(tmp_path / "missing"), "PATH": "/usr/bin:/bin"}
-    db = f"sqlite:///{tmp_path / 'kb.sqlite'}"
-    done = subprocess.run(
-        [sys.executable, "-m", "cpkb", "serve", "--db", db, "--port", "1"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert done.returncode == 2
-    assert "tokens file" in done.stderr and "Traceback" not in done.stderr
+def test_serve_refuses_an_unreadable_tokens_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import uvicorn
+
+    def started(*_: object, **__: object) -> None:
+        raise AssertionError("the server started without its tokens file")
+
+    monkeypatch.setattr(uvicorn, "run", started)
+    monkeypatch.setenv("CPKB_TOKENS_FILE", str(tmp_path / "missing"))
+    assert cpkb_main(["serve", "--db", f"sqlite:///{tmp_path / 'kb.sqlite'}"]) == 2
+    err = capsys.readouterr().err
+    assert "tokens file" in err and "Traceback" not in err
