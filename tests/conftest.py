@@ -6,6 +6,8 @@
   skipped with the reason when the server cannot be reached.
 - `db_url`: parametrised over both ("sqlite", "postgres"): a test written once runs on each.
 - `app_client`: a TestClient over `create_app` on `db_url`.
+- `core_client`: the same app with its extension hooks (server.hooks: the surrogate engine)
+  removed before start: the core API alone, without fits that slow every test's teardown.
 - `live_server`: `cpkb serve` in a subprocess on a free loopback port, on `db_url`; yields
   a `LiveServer(url, db_url, log)` (`log`: the server's output file).
 - `fresh_postgres_database(reason)` and `run_live_server(db_url, log)`: the same as context
@@ -68,6 +70,20 @@ def app_client(db_url: str) -> Iterator[object]:
     from server.settings import Settings
 
     with TestClient(create_app(Settings(database_url=db_url))) as client:
+        yield client
+
+
+@pytest.fixture
+def core_client(db_url: str) -> Iterator[object]:
+    from fastapi.testclient import TestClient
+
+    from server.app import create_app
+    from server.hooks import ServiceHooks
+    from server.settings import Settings
+
+    app = create_app(Settings(database_url=db_url))
+    app.state.hooks.__dict__.update(ServiceHooks().__dict__)
+    with TestClient(app) as client:
         yield client
 
 

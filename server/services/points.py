@@ -11,11 +11,11 @@ import csv
 import io
 import math
 from collections import defaultdict
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import insert, select, update
+from sqlalchemy import bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
 from client.models import PointIn, PointOut, PointResult, PointsPage
@@ -86,43 +86,63 @@ def _prepare(points: list[PointIn]) -> tuple[list[ResolvedGraph], list[dict[str,
     return resolved, rows
 
 
+_TYPES = TypeRow.__table__
+_POINTS = PointRow.__table__
+_TYPE_COLUMNS = (_TYPES.c.id, _TYPES.c.type_id, _TYPES.c.graph)
+_COUNT = (
+    update(_TYPES)
+    .where(_TYPES.c.id == bindparam("pk"))
+    .values(
+        n_points=_TYPES.c.n_points + bindparam("n"),
+        n_infeasible=_TYPES.c.n_infeasible + bindparam("n_infeasible"),
+        updated_at=bindparam("now"),
+    )
+)
+
+
+def _stored_types(session: Session, kb_pk: int, type_ids: Iterable[str]) -> dict[str, Any]:
+    query = select(*_TYPE_COLUMNS).where(
+        _TYPES.c.kb_id == kb_pk, _TYPES.c.type_id.in_(list(type_ids))
+    )
+    return {row.type_id: row for row in session.execute(query)}
+
+
 def _types(
     session: Session, kb_pk: int, resolved: list[ResolvedGraph]
 ) -> dict[str, tuple[int, bool]]:
     """type_id -> (row id, created by this post); new types inserted, stored ones checked."""
     distinct = {r.type_id: r for r in resolved}
-    now = utcnow()
-    fresh = [
-        {
-            "kb_id": kb_pk,
-            "type_id": r.type_id,
-            "failure": r.failure,
-            "decisions": r.decisions,
-            "context": r.context,
-            "graph": r.canonical,
-            "space": r.space_json(),
-            "n_points": 0,
-            "n_infeasible": 0,
-            "created_at": now,
-            "updated_at": now,
-        }
-        for r in sorted(distinct.values(), key=lambda r: r.type_id)
-    ]
-    stmt = insert_ignoring_conflicts(session, TypeRow, ["kb_id", "type_id"])
-    created = {
-        type_id for (type_id,) in session.execute(stmt.returning(TypeRow.type_id), fresh).all()
-    }
-    rows = session.scalars(
-        select(TypeRow).where(TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(distinct))
-    ).all()
-    by_id = {row.type_id: row for row in rows}
-    checked: set[str] = set()
+    stored = _stored_types(session, kb_pk, distinct)
+    created: set[str] = set()
+    missing = sorted(set(distinct) - set(stored))
+    if missing:
+        now = utcnow()
+        fresh = [
+            {
+                "kb_id": kb_pk,
+                "type_id": r.type_id,
+                "failure": r.failure,
+                "decisions": r.decisions,
+                "context": r.context,
+                "graph": r.canonical,
+                "space": r.space_json(),
+                "n_points": 0,
+                "n_infeasible": 0,
+                "created_at": now,
+                "updated_at": now,
+            }
+            for r in (distinct[t] for t in missing)
+        ]
+        # Another writer may create the same type meanwhile: its row wins, ours is skipped.
+        stmt = insert_ignoring_conflicts(session, _TYPES, ["kb_id", "type_id"])
+        created = {t for (t,) in session.execute(stmt.returning(_TYPES.c.type_id), fresh)}
+        stored.update(_stored_types(session, kb_pk, missing))
+    checked: set[int] = set()
     for r in resolved:
-        marker = f"{r.type_id}:{id(r)}"
-        if marker not in checked:
-            check_or_409(r, by_id[r.type_id])
-            checked.add(marker)
-    return {row.type_id: (row.id, row.type_id in created) for row in rows}
+        if id(r) not in checked:
+            check_or_409(r, stored[r.type_id].graph)
+            checked.add(id(r))
+    return {t: (row.id, t in created) for t, row in stored.items()}
 
 
 def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
@@ -150,15 +170,15 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
         by_key: dict[str, PointResult] = {}
         if keyless:
             ids = session.scalars(
-                insert(PointRow).returning(PointRow.id, sort_by_parameter_order=True), keyless
+                insert(_POINTS).returning(_POINTS.c.id, sort_by_parameter_order=True), keyless
             ).all()
             for row, point_id in zip(keyless, ids, strict=True):
                 row["id"] = point_id
             inserted.extend(keyless)
         if keyed:
-            stmt = insert_ignoring_conflicts(session, PointRow, ["kb_id", "key"])
+            stmt = insert_ignoring_conflicts(session, _POINTS, ["kb_id", "key"])
             for point_id, key in session.execute(
-                stmt.returning(PointRow.id, PointRow.key), list(keyed.values())
+                stmt.returning(_POINTS.c.id, _POINTS.c.key), list(keyed.values())
             ):
                 keyed[key]["id"] = point_id
                 inserted.append(keyed[key])
@@ -204,16 +224,13 @@ def _count(session: Session, inserted: list[dict[str, Any]], now: Any) -> None:
     for row in inserted:
         totals[row["type_pk"]][0] += 1
         totals[row["type_pk"]][1] += 0 if row["feasible"] else 1
-    for type_pk in sorted(totals):
-        n, n_infeasible = totals[type_pk]
+    if totals:
         session.execute(
-            update(TypeRow)
-            .where(TypeRow.id == type_pk)
-            .values(
-                n_points=TypeRow.n_points + n,
-                n_infeasible=TypeRow.n_infeasible + n_infeasible,
-                updated_at=now,
-            )
+            _COUNT,
+            [
+                {"pk": pk, "n": n, "n_infeasible": n_inf, "now": now}
+                for pk, (n, n_inf) in sorted(totals.items())
+            ],
         )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from pydantic import TypeAdapter
 from sqlalchemy import select
@@ -25,9 +26,9 @@ def resolve_or_422(graph: Graph, where: str) -> ResolvedGraph:
         raise InvalidInput(f"{where}.{exc}") from exc
 
 
-def check_or_409(resolved: ResolvedGraph, row: TypeRow) -> None:
+def check_or_409(resolved: ResolvedGraph, stored_graph: dict[str, Any]) -> None:
     try:
-        check_same_type(resolved, row.graph)
+        check_same_type(resolved, stored_graph)
     except TypeConflict as exc:
         raise Conflict(str(exc)) from exc
 
@@ -70,7 +71,7 @@ def match_types(store: Store, kb: str, graphs: list[Graph]) -> list[MatchResult]
         for r in resolved:
             row = rows.get(r.type_id)
             if row is not None:
-                check_or_409(r, row)
+                check_or_409(r, row.graph)
             results.append(
                 MatchResult(
                     type_id=r.type_id, exists=row is not None, n_points=row.n_points if row else 0
