@@ -155,6 +155,7 @@ def solve_ik(
         else:
             start = tuple(rng.uniform(low, high))
         scene.set_arm(start)
+        previous = math.inf
         # PyBullet's IK stops short of its own iteration count, so refine from its answer a few
         # times, projecting onto the joint limits in between.
         for _ in range(IK_REFINEMENTS):
@@ -169,8 +170,12 @@ def solve_ik(
             )
             q = tuple(float(v) for v in np.clip(solution[: len(ARM_JOINTS)], low, high))
             scene.set_arm(q)
-            if math.dist(scene.tcp()[0], target[0]) < tolerance / 10:
+            error = math.dist(scene.tcp()[0], target[0])
+            # Stop when converged, or when a refinement no longer halves the error (stuck
+            # against a joint limit or out of reach): more calls would not get there.
+            if error < tolerance / 10 or error > previous / 2:
                 break
+            previous = error
         pos, orn = scene.tcp()
         pos_err = float(np.linalg.norm(np.subtract(pos, target[0])))
         ang_err = angle_between(orn, target[1])
