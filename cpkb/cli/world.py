@@ -62,6 +62,7 @@ def _bindings(text: str | None) -> dict:
 def run_render(args: argparse.Namespace) -> int:
     from planner.sim import load_world
     from planner.sim.render import mark_regions, replay, snapshot
+    from planner.sim.scene import GuiUnavailable
     from planner.tasks import TaskError
 
     if args.out is None and not args.gui:
@@ -73,6 +74,8 @@ def run_render(args: argparse.Namespace) -> int:
         world = load_world(args.task, seed=args.seed, gui=args.gui)
     except TaskError as exc:
         raise CliError(str(exc)) from None
+    except GuiUnavailable as exc:
+        raise CliError(f"{exc}; use --out FILE.png for a picture without one") from None
     try:
         known = {d.var for d in world.skeleton.decisions}
         unknown = sorted(set(bindings) - known)

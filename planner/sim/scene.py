@@ -7,6 +7,8 @@ PyBullet's broadphase once (`performCollisionDetection`) and read every contact 
 from __future__ import annotations
 
 import math
+import os
+import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -24,6 +26,10 @@ MAX_FINGER_OPENING = 0.04  # per finger: the gripper opens 0.08 m
 PLACE_CLEARANCE = 0.001  # a placed body floats 1 mm above its support, as the authors do
 
 
+class GuiUnavailable(RuntimeError):
+    """A GUI was asked for where there is no display."""
+
+
 @dataclass(frozen=True)
 class Contact:
     """A penetrating contact between the robot or the held body and another body."""
@@ -37,6 +43,9 @@ class Scene:
 
     def __init__(self, task: Task, *, gui: bool = False) -> None:
         self.task = task
+        if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet ends the whole process when it cannot reach an X server.
+            raise GuiUnavailable("PyBullet's window needs a display, and DISPLAY is not set")
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.gui = gui
         p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=self.client)

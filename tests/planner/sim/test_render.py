@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -40,3 +41,16 @@ def test_render_mistakes_are_one_line_errors(tmp_path: Path) -> None:
     assert wrong.returncode == 2 and "not a decision of desk" in wrong.stderr
     for done in (missing, bad, wrong):
         assert "Traceback" not in done.stderr
+
+
+def test_gui_without_a_display_is_a_clear_error() -> None:
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    done = subprocess.run(
+        [sys.executable, "-m", "cpkb", "render", "--task", "desk", "--gui"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert done.returncode == 2
+    assert "needs a display" in done.stderr and "Traceback" not in done.stderr
