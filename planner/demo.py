@@ -25,9 +25,15 @@ def _run(console: Console, label: str, **kwargs: Any) -> PlanResult:
 
 
 def run_demo(
-    *, seeds: int = 3, predecessor_rollouts: int = 30, db: str | None = None, prefix: str = ""
+    *,
+    seeds: int = 3,
+    predecessor_rollouts: int = 30,
+    db: str | None = None,
+    kb_url: str | None = None,
+    prefix: str = "",
 ) -> int:
-    """`prefix` selects the worlds: "" for the PyBullet tasks, "analytic:" for the analytic ones."""
+    """`prefix` selects the worlds: "" for the PyBullet tasks, "analytic:" for the analytic ones;
+    the knowledge base is the service at `kb_url`, else an embedded one on `db`."""
     console = Console(stderr=True)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     rows: list[tuple[int, str, PlanResult, PlanResult, PlanResult]] = []
@@ -35,7 +41,7 @@ def run_demo(
         "[bold]cpkb demo[/]: deskP then desk with cp-bo on one knowledge base, "
         "beside desk with quasi-random"
     )
-    with knowledge_service(None, db) as url:
+    with knowledge_service(kb_url, db) as url:
         for seed in range(seeds):
             kb = f"demo-{stamp}-seed{seed}"
             common = {"seed": seed, "kb_url": url, "kb": kb}
@@ -70,12 +76,14 @@ def run_demo(
         else ""
     )
     last_kb = rows[-1][1]
-    db_hint = f" --db {db}" if db else ""
+    serve = f"cpkb serve --db {db}" if db else "cpkb serve"
+    url = kb_url or "http://127.0.0.1:8000"
     out.print(
         "\n[bold]Where to look next[/]\n"
-        f"  cpkb serve{db_hint}        then open http://127.0.0.1:8000/ (types, graphs, points)\n"
-        f"  cpkb types --kb {last_kb}   the constraint types deskP and desk learned\n"
-        f"  cpkb plan --task regrasp --method cp-bo --kb-url http://127.0.0.1:8000 --kb {last_kb}\n"
+        f"  {serve + ', then ' if kb_url is None else ''}open {url}/ "
+        "(types, causal graphs, points, feasibility maps)\n"
+        f"  cpkb types --url {url} --kb {last_kb}   the constraint types deskP and desk learned\n"
+        f"  cpkb plan --task regrasp --method cp-bo --kb-url {url} --kb {last_kb}\n"
         "  cpkb bench --tasks desk --methods quasi-random,cp-bo,cp-bo-transfer --seeds 20 "
         "--out bench-out"
     )

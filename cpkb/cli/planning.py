@@ -38,6 +38,7 @@ def register(subparsers: Any) -> None:
     demo.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
     demo.add_argument("--predecessor-rollouts", type=int, default=30, help="deskP budget (30)")
     demo.add_argument("--db", metavar="URL", help="database URL (default: the embedded default)")
+    demo.add_argument("--kb-url", help="use this running service instead of an embedded one")
     demo.add_argument(
         "--analytic",
         action="store_true",
@@ -121,5 +122,6 @@ def _demo(args: argparse.Namespace) -> int:
         seeds=args.seeds,
         predecessor_rollouts=args.predecessor_rollouts,
         db=args.db,
+        kb_url=args.kb_url,
         prefix="analytic:" if args.analytic else "",
     )

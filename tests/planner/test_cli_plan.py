@@ -1,0 +1,88 @@
+"""`cpkb plan` and `cpkb demo` from the command line: JSON as the last line, clear errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cpkb.cli import main
+
+
+def test_plan_prints_the_result_as_its_last_json_line(capsys):
+    code = main(
+        ["plan", "--task", "analytic:desk", "--method", "quasi-random", "--seed", "2", "--json"]
+    )
+    out = capsys.readouterr().out.strip().splitlines()
+    result = json.loads(out[-1])
+    assert code == 0 and result["solved"] is True
+    assert (result["task"], result["method"], result["seed"]) == ("desk", "quasi-random", 2)
+    assert result["rollouts"] >= 1 and set(result["bindings"]) == {"#dir1", "#pose12"}
+    assert result["kb"] is None and result["points_posted"] == 0
+
+
+def test_plan_without_json_summarises_in_words(capsys):
+    code = main(["plan", "--task", "analytic:desk", "--method", "quasi-random", "--quiet"])
+    assert code == 0
+    assert "solved after" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--task", "no-such-task", "--method", "quasi-random"], "no-such-task"),
+        (["--task", "analytic:desk", "--method", "simulated-annealing"], "unknown method"),
+        (
+            ["--task", "analytic:desk", "--method", "quasi-random", "--max-rollouts", "0"],
+            "--max-rollouts",
+        ),
+    ],
+)
+def test_plan_mistakes_are_one_line_errors(argv, message):
+    out = subprocess.run(
+        [sys.executable, "-m", "cpkb", "plan", *argv, "--json"], capture_output=True, text=True
+    )
+    assert out.returncode == 2, out.stderr
+    assert message in out.stderr and "Traceback" not in out.stderr
+
+
+def test_demo_runs_on_the_analytic_worlds(kb_service, capsys):
+    code = main(["demo", "--analytic", "--seeds", "1", "--kb-url", kb_service])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "desk quasi-random" in out and "Where to look next" in out
+
+
+@pytest.mark.slow
+def test_plan_desk_with_cp_bo_end_to_end(tmp_path: Path):
+    """The real PyBullet desk, an embedded knowledge base on its own SQLite file."""
+    env = {**os.environ, "CPKB_DATABASE_URL": f"sqlite:///{tmp_path / 'kb.db'}"}
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "cpkb",
+            "plan",
+            "--task",
+            "desk",
+            "--method",
+            "cp-bo",
+            "--seed",
+            "0",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["solved"] and result["task"] == "desk" and result["method"] == "cp-bo"
+    assert result["points_posted"] >= result["rollouts"] - 1 and result["types_active"] >= 1
+    assert result["wall_s"] >= result["sim_s"] > 0 and result["kb_s"] > 0
