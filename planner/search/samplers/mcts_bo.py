@@ -16,6 +16,7 @@ from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
 MAX_CHILDREN_FITTED = 150  # exact GP: O(n^3); the most recent children carry the signal
+FIT_ITERATIONS = 60  # a node's children are few; warm starts take a third of this
 
 
 class MctsBoSampler:
@@ -48,7 +49,9 @@ class MctsBoSampler:
         z = SpaceEncoder(space).encode_points([{var: v} for v in values])
         key = (var, tuple(sorted((k, str(v)) for k, v in ctx.path.items())))
         seed = int(ctx.rng.integers(2**31 - 1))
-        fit = fit_regression(z, list(rewards), seed=seed, warm=self._fits.get(key))
+        fit = fit_regression(
+            z, list(rewards), seed=seed, warm=self._fits.get(key), max_iters=FIT_ITERATIONS
+        )
         self._fits[key] = fit
         suggestion = maximize(
             ucb(fit.predictor, space, self.beta),
