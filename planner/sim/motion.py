@@ -68,14 +68,18 @@ def rrt_connect(
     low: Sequence[float],
     high: Sequence[float],
     seed: int,
+    max_checks: int,
     timeout: float,
     resolution: float,
     tally: CollisionTally,
-) -> list[Config] | None:
-    """An RRT-Connect path from start to goal, or None when the planner runs out of time.
+) -> tuple[list[Config] | None, int]:
+    """An RRT-Connect path from start to goal (None when the planner runs out of budget), and
+    the number of collision checks it spent.
 
-    OMPL's random generator is reseeded before the planner and its sampler exist, so the same
-    query with the same seed gives the same path."""
+    The budget is counted in collision checks, not seconds, so that a verdict does not depend
+    on how busy the machine is; `timeout` is only a safety net. OMPL's random generator is
+    reseeded before the planner and its sampler exist, so the same query with the same seed
+    gives the same path."""
     ou.RNG.setSeed(seed)
     dim = len(start)
     space = ob.RealVectorStateSpace(dim)
@@ -86,7 +90,10 @@ def rrt_connect(
     space.setBounds(bounds)
     setup = og.SimpleSetup(space)
 
+    checks = [0]
+
     def is_valid(state: ob.State) -> bool:
+        checks[0] += 1
         hits = valid(tuple(state[i] for i in range(dim)))
         if hits:
             tally.add(hits)
@@ -102,8 +109,11 @@ def rrt_connect(
         a[i], b[i] = start[i], goal[i]
     setup.setStartAndGoalStates(a, b)
     setup.setPlanner(og.RRTConnect(info))
-    solved = setup.solve(timeout)
+    budget = ob.PlannerTerminationCondition(lambda: checks[0] >= max_checks)
+    stop = ob.plannerOrTerminationCondition(budget, ob.timedPlannerTerminationCondition(timeout))
+    solved = setup.solve(stop)
     if not setup.haveExactSolutionPath() or not bool(solved):
-        return None
+        return None, checks[0]
     path = setup.getSolutionPath()
-    return [tuple(path.getState(k)[i] for i in range(dim)) for k in range(path.getStateCount())]
+    states = [tuple(path.getState(k)[i] for i in range(dim)) for k in range(path.getStateCount())]
+    return states, checks[0]

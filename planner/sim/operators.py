@@ -225,13 +225,14 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
             call, ex, f"the retreat from {call.args[0]} collides with {ex.collision_text()}"
         )
     seed = derived_seed(ex.seed, _text(call), a, b)
-    middle = rrt_connect(
+    middle, checks = rrt_connect(
         a,
         b,
         check,
         low=ex.scene.joint_low,
         high=ex.scene.joint_high,
         seed=seed,
+        max_checks=s.motion_max_checks,
         timeout=s.motion_timeout,
         resolution=s.motion_resolution,
         tally=ex.tally,
@@ -242,8 +243,9 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
         return _fail(
             call,
             ex,
-            f"RRT-Connect found no path within its {s.motion_timeout} s timeout{hit}",
-            timeout=s.motion_timeout,
+            f"RRT-Connect found no path within its budget of {s.motion_max_checks} collision "
+            f"checks ({checks} used){hit}",
+            collision_checks=float(checks),
         )
     if goal.pre is not None and not check_segment(b, goal.q, check, s.motion_resolution, ex.tally):
         ex.settle()
@@ -254,7 +256,8 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
     waypoints = (start.q, *middle, goal.q)
     carrying = ex.held.body if ex.held is not None else None
     ex.values[call.outputs[0]] = Trajectory(waypoints, goal, carrying)
-    return CheckResult(call, True, detail={"waypoints": float(len(waypoints))})
+    detail = {"waypoints": float(len(waypoints)), "collision_checks": float(checks)}
+    return CheckResult(call, True, detail=detail)
 
 
 def move_pick(call: OperatorCall, ex: Execution) -> CheckResult:

@@ -68,7 +68,8 @@ class PlannerSettings:
     ik_restarts: int = 8
     ik_iterations: int = 100
     ik_tolerance: float = 1e-3
-    motion_timeout: float = 0.25
+    motion_max_checks: int = 4000  # RRT-Connect's budget, in collision checks (deterministic)
+    motion_timeout: float = 5.0  # seconds; a safety net only
     motion_resolution: float = 0.05
     approach: float = 0.1
 

@@ -154,3 +154,15 @@ def test_bindings_that_do_not_fit_the_skeleton_are_refused(desk: PyBulletWorld) 
         desk.transition(0, {}, desk.initial_state())
     with pytest.raises(ValueError, match="#dir1 must be one of"):
         desk.transition(0, {"#dir1": "sideways"}, desk.initial_state())
+
+
+def test_the_motion_planner_budget_is_counted_in_checks_and_named(tmp_path: Path) -> None:
+    task = (data_dir() / "desk.yaml").read_text().replace("task: desk", "task: tight")
+    (tmp_path / "tight.yaml").write_text(task + "settings: {motion_max_checks: 2}\n")
+    world = load_world(tmp_path / "tight.yaml", seed=1)
+    try:
+        out = world.transition(0, {"#dir1": "front"}, world.initial_state())
+    finally:
+        world.close()
+    assert [c.call.name for c in out.checks] == ["Inv-kin", "Plan-motion"]
+    assert "budget of 2 collision checks" in out.failed.reason
