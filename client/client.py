@@ -1,8 +1,11 @@
 """A typed synchronous client for the knowledge-base service (wire contract v1).
 
 Every call has a timeout; idempotent calls are retried with exponential backoff and jitter on
-connection errors and 5xx answers. Point posts are made idempotent by a key on every point
-(generated when the caller gives none), so a retry after a lost answer never stores twice.
+connection errors and 5xx answers. Once the client has reached the server, connection errors
+are retried for at least `reconnect_for` seconds, so a long planner run waits out a server
+restart; a server never reached (a wrong URL) still fails after `retries`. Point posts are made
+idempotent by a key on every point (generated when the caller gives none), so a retry after a
+lost answer never stores twice.
 4xx answers raise the matching `client.errors` class carrying the server's detail.
 """
 
@@ -19,7 +22,7 @@ from typing import Any
 import httpx
 from pydantic import BaseModel, TypeAdapter
 
-from client.errors import CpkbError, ServerError, ServiceUnavailable, error_for
+from client.errors import CpkbError, ServiceUnavailable, error_for
 from client.models import (
     MAX_POINTS_PER_POST,
     Graph,
@@ -56,6 +59,7 @@ class CpkbClient:
         retries: int = 5,
         backoff: float = 0.2,
         max_backoff: float = 5.0,
+        reconnect_for: float = 90.0,
         token: str | None = None,
         transport: httpx.BaseTransport | None = None,
     ) -> None:
@@ -64,6 +68,8 @@ class CpkbClient:
         self.retries = retries
         self.backoff = backoff
         self.max_backoff = max_backoff
+        self.reconnect_for = reconnect_for
+        self._reached = False
         self._jitter = random.Random()
         self._http = httpx.Client(
             base_url=self.base_url, timeout=timeout, headers=headers, transport=transport
@@ -97,25 +103,30 @@ class CpkbClient:
     ) -> httpx.Response:
         """One call with retries (when `retry`) on connection errors and 5xx; raises on 4xx."""
         attempts = 1 + (self.retries if retry else 0)
-        for attempt in range(attempts):
-            last = attempt + 1 == attempts
+        reconnect_until = time.monotonic() + (self.reconnect_for if retry else 0.0)
+        attempt = 0
+        while True:
+            attempt += 1
+            more = attempt < attempts
             try:
                 response = self._http.request(method, path, json=json, params=params)
             except httpx.TransportError as exc:
-                if last:
+                restarting = self._reached and time.monotonic() < reconnect_until
+                if not (more or restarting):
                     raise ServiceUnavailable(
                         f"cannot reach the knowledge base at {self.base_url}: "
                         f"{type(exc).__name__}: {exc}"
                     ) from exc
-                self._pause(attempt)
+                # While waiting out a restart, poll every ~1.6 s rather than backing off further.
+                self._pause(attempt - 1 if more else 3)
                 continue
-            if response.status_code >= 500 and not last:
-                self._pause(attempt, response)
+            self._reached = True
+            if response.status_code >= 500 and more:
+                self._pause(attempt - 1, response)
                 continue
             if response.is_error:
                 raise error_for(response)
             return response
-        raise ServerError(f"{method} {path}: no answer after {attempts} attempts")
 
     def _call(self, model: Any, method: str, path: str, **kwargs: Any) -> Any:
         response = self.request(method, path, **kwargs)
