@@ -19,7 +19,7 @@ from pathlib import Path
 
 import httpx
 
-START_TIMEOUT_S = 60.0
+START_TIMEOUT_S = 180.0  # generous: a start on a loaded machine (torch import) can take a minute
 STOP_TIMEOUT_S = 10.0
 
 

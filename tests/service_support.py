@@ -131,9 +131,11 @@ class LiveServer:
 
 
 @contextmanager
-def run_live_server(db_url: str, log: Path) -> Iterator[LiveServer]:
-    """`cpkb serve` on `db_url` in a subprocess, its output appended to `log`."""
+def run_live_server(
+    db_url: str, log: Path, env: dict[str, str] | None = None
+) -> Iterator[LiveServer]:
+    """`cpkb serve` on `db_url` in a subprocess (extra `env`), its output appended to `log`."""
     from cpkb.embedded import embedded_service
 
-    with embedded_service(db_url, log_file=log) as url:
+    with embedded_service(db_url, log_file=log, env=env) as url:
         yield LiveServer(url=url, db_url=db_url, log=log)

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
@@ -22,6 +23,7 @@ def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str
     )
 
 
+@pytest.mark.slow
 def test_points_survive_a_restart_and_show_in_cpkb_types(db_url: str, tmp_path: Path) -> None:
     log = tmp_path / "server.log"
     graphs = [make_graph(), make_graph(failure="Plan-motion", context=("shelf", "box2"))]
