@@ -44,3 +44,12 @@ class Settings(BaseSettings):
     cors_origins: list[str] = Field(default_factory=list)
 
     log_level: str = "info"
+
+    # Surrogates (server.surrogates): fits run in a child process unless false; see EngineConfig.
+    surrogate_fit_process: bool = True
+    surrogate_max_inducing: int = Field(default=128, ge=8, le=1024)
+    surrogate_refresh_s: float = Field(default=2.0, ge=0)
+    surrogate_pending_ttl_s: float = Field(default=30.0, ge=0)
+    surrogate_prefit_types: int = Field(default=16, ge=0)
+    surrogate_pop_size: int = Field(default=24, ge=4, le=1000)
+    surrogate_generations: int = Field(default=20, ge=1, le=1000)

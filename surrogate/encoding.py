@@ -74,16 +74,17 @@ class SpaceEncoder:
         self.dim = start
 
     # --- points <-> columns -------------------------------------------------------------
-    def columns(self, points: Sequence[Mapping[str, Value]]) -> Columns:
-        """Validated columns of `points`; every variable must be present; extra keys ignored."""
+    def columns(self, points: Sequence[Mapping[str, Value]], where: str = "") -> Columns:
+        """Validated columns of `points`; every variable must be present; extra keys ignored.
+        With `where` (e.g. "x"), errors name the point: `x[3].pose`."""
         cols: Columns = {}
         for var in self.vars:
             values = []
-            for point in points:
+            for i, point in enumerate(points):
                 if var.name not in point:
-                    raise EncodingError(var.name, "missing value")
+                    raise EncodingError(_field(where, i, var.name), "missing value")
                 values.append(point[var.name])
-            cols[var.name] = value_column(var.name, var.domain, values)
+            cols[var.name] = value_column(var.name, var.domain, values, where)
         return cols
 
     def points(self, cols: Mapping[str, np.ndarray]) -> list[dict[str, Value]]:
@@ -132,14 +133,23 @@ class SpaceEncoder:
         return self.encode(self.columns(points))
 
 
-def value_column(field: str, domain: Domain, values: Sequence[object]) -> np.ndarray:
-    """A column for `values` of one variable, or EncodingError naming `field`."""
+def _field(where: str, i: int, name: str) -> str:
+    return f"{where}[{i}].{name}" if where else name
+
+
+def value_column(
+    field: str, domain: Domain, values: Sequence[object], where: str = ""
+) -> np.ndarray:
+    """A column for `values` of one variable, or EncodingError naming `field` (as
+    `where[i].field` when `where` is given)."""
     if isinstance(domain, CategoricalDomain):
         index = {c: i for i, c in enumerate(domain.choices)}
         out = np.empty(len(values), dtype=int)
         for i, value in enumerate(values):
             if not isinstance(value, str) or value not in index:
-                raise EncodingError(field, f"{value!r} is not one of {list(domain.choices)}")
+                raise EncodingError(
+                    _field(where, i, field), f"{value!r} is not one of {list(domain.choices)}"
+                )
             out[i] = index[value]
         return out
     d = len(domain.low)
@@ -147,13 +157,15 @@ def value_column(field: str, domain: Domain, values: Sequence[object]) -> np.nda
     low, high = np.asarray(domain.low), np.asarray(domain.high)
     for i, value in enumerate(values):
         if not isinstance(value, list | tuple) or len(value) != d:
-            raise EncodingError(field, f"expected a list of {d} numbers, got {value!r}")
+            raise EncodingError(_field(where, i, field), f"expected {d} numbers, got {value!r}")
         try:
             vec = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
-            raise EncodingError(field, f"expected numbers, got {value!r}") from None
+            raise EncodingError(_field(where, i, field), f"expected numbers: {value!r}") from None
         if not np.all(np.isfinite(vec)) or np.any(vec < low - 1e-9) or np.any(vec > high + 1e-9):
-            raise EncodingError(field, f"{value!r} is outside [{domain.low}, {domain.high}]")
+            raise EncodingError(
+                _field(where, i, field), f"{value!r} outside {domain.low}..{domain.high}"
+            )
         out_f[i] = vec
     return out_f
 

@@ -14,7 +14,10 @@ no Python loop per point, safe to share between threads).
 
 from __future__ import annotations
 
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -152,6 +155,23 @@ class _SVGP(gpytorch.models.ApproximateGP):
         return gpytorch.distributions.MultivariateNormal(self.mean_module(x), self.covar_module(x))
 
 
+_threads_lock = threading.Lock()
+
+
+@contextmanager
+def _single_thread() -> Iterator[None]:
+    """Fits are small (m <= a few hundred): one torch thread is as fast, and on a shared,
+    oversubscribed machine OpenMP spinning across threads makes fits several times slower."""
+    with _threads_lock:
+        before = torch.get_num_threads()
+        torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        with _threads_lock:
+            torch.set_num_threads(before)
+
+
 def _train(
     loss_fn: Any,
     params: list[torch.Tensor],
@@ -162,6 +182,13 @@ def _train(
 ) -> int:
     """Adam on `loss_fn()` until the loss stops improving by `tol` (relative) for `patience`."""
     optimiser = torch.optim.Adam(params, lr=lr)
+    with _single_thread():
+        return _adam_loop(loss_fn, optimiser, max_iters, tol, patience)
+
+
+def _adam_loop(
+    loss_fn: Any, optimiser: torch.optim.Optimizer, max_iters: int, tol: float, patience: int
+) -> int:
     best = np.inf
     since_best = 0
     for it in range(1, max_iters + 1):

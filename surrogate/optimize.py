@@ -39,7 +39,7 @@ class OptimizerConfig:
     """NSGA-II settings. The authors used pop 100 x 100 generations (`authors()`); the default is
     cut to what `benchmarks/synthetic_cpbo.py` measured to reach the same acquisition values."""
 
-    pop_size: int = 40
+    pop_size: int = 24
     n_gen: int = 20
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
@@ -48,6 +48,7 @@ class OptimizerConfig:
     penalty: float = 0.3  # score removed at an excluded or pending point
     radius: float = 0.1  # penalty reach, in normalised distance
     enumerate_limit: int = 2048
+    eliminate_duplicates: bool = True
 
     @staticmethod
     def authors() -> OptimizerConfig:
@@ -170,15 +171,7 @@ class _Problem(Problem):
 def _validated(
     space: Mapping[str, Domain], points: Sequence[Mapping[str, Value]], what: str
 ) -> Columns:
-    cols: Columns = {}
-    for name, domain in space.items():
-        values = []
-        for i, point in enumerate(points):
-            if name not in point:
-                raise EncodingError(f"{what}[{i}].{name}", "missing value")
-            values.append(point[name])
-        cols[name] = value_column(f"{what}.{name}", domain, values)
-    return cols
+    return SpaceEncoder(space).columns(points, where=what)
 
 
 def _split(
@@ -310,7 +303,7 @@ def _nsga2(genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int)
         sampling=start,
         crossover=_MixedSBX(genome.categorical, eta=config.sbx_eta, prob=config.sbx_prob),
         mutation=_MixedPM(genome.categorical, eta=config.pm_eta),
-        eliminate_duplicates=True,
+        eliminate_duplicates=config.eliminate_duplicates,
     )
     problem = _Problem(scorer)
     result = minimize(problem, algorithm, ("n_gen", config.n_gen), seed=seed, verbose=False)

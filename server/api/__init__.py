@@ -12,13 +12,16 @@ from fastapi import APIRouter, FastAPI
 
 from server import dashboard
 from server.api import health, kbs, points, types
+from server.api import surrogates as surrogate_routes
 from server.observability import install_observability
+from server.surrogates import install as install_surrogates
 
 ROUTERS: list[APIRouter] = [
     health.router,
     kbs.router,
     types.router,
     points.router,
+    surrogate_routes.router,
     dashboard.router,
 ]
-INSTALLERS: list[Callable[[FastAPI], None]] = [install_observability]
+INSTALLERS: list[Callable[[FastAPI], None]] = [install_observability, install_surrogates]

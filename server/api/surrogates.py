@@ -1,0 +1,33 @@
+"""MPF suggestions and per-type feasibility predictions (thin: see server.surrogates.service)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Request
+
+from client.models import PredictIn, PredictOut, SuggestIn, SuggestOut
+from server.surrogates import service
+from server.surrogates.engine import SurrogateEngine
+
+router = APIRouter(prefix="/v1/kbs/{kb}", tags=["surrogates"])
+
+
+def _engine(request: Request) -> SurrogateEngine:
+    return request.app.state.surrogates
+
+
+EngineDep = Annotated[SurrogateEngine, Depends(_engine)]
+
+
+@router.post("/suggest")
+def suggest(kb: str, body: SuggestIn, engine: EngineDep) -> SuggestOut:
+    """The point of `space` maximising min_i P(constraint i feasible), fixed variables applied,
+    never an excluded point, away from suggestions still pending."""
+    return service.suggest(engine, kb, body)
+
+
+@router.post("/types/{type_id}/predict")
+def predict(kb: str, type_id: str, body: PredictIn, engine: EngineDep) -> PredictOut:
+    """P(feasible) of each x under the type's current surrogate."""
+    return service.predict(engine, kb, type_id, body)

@@ -1,0 +1,34 @@
+"""Per-type GP surrogates in the service: the engine (cache, fit worker, pending suggestions)
+and the suggest/predict services. `install(app)` wires the engine into the app's hooks."""
+
+from __future__ import annotations
+
+from fastapi import FastAPI
+
+
+def install(app: FastAPI) -> None:
+    """Create the engine from the app's settings and plug it into the service hooks:
+    new points queue fits, type detail shows the surrogate state, the lifespan starts and
+    stops the fit worker; `app.state.predict(kb, type_id, xs)` serves in-process callers."""
+    from server.surrogates.engine import EngineConfig, SurrogateEngine
+    from surrogate.optimize import OptimizerConfig
+
+    settings = app.state.settings
+    config = EngineConfig(
+        fit_in_process=settings.surrogate_fit_process,
+        max_inducing=settings.surrogate_max_inducing,
+        refresh_s=settings.surrogate_refresh_s,
+        pending_ttl_s=settings.surrogate_pending_ttl_s,
+        prefit_types=settings.surrogate_prefit_types,
+        optimizer=OptimizerConfig(
+            pop_size=settings.surrogate_pop_size, n_gen=settings.surrogate_generations
+        ),
+    )
+    engine = SurrogateEngine(app.state.store, config)
+    hooks = app.state.hooks
+    hooks.points_added.append(engine.notify)
+    hooks.surrogate_state = engine.state
+    hooks.on_startup.append(engine.start)
+    hooks.on_shutdown.append(engine.stop)
+    app.state.surrogates = engine
+    app.state.predict = engine.predict

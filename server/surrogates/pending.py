@@ -1,0 +1,104 @@
+"""Suggestions served but not yet answered by a point (the pending trials of Ax / Optuna).
+
+The optimiser pushes new suggestions away from these, so that planners asking at the same moment
+for the same space do not all get one point. An entry leaves the book when a point arrives for one
+of its constraint types at its values, or when it expires (`ttl_s`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from surrogate.encoding import Value
+
+MAX_PER_KB = 1000
+
+
+@dataclass(frozen=True)
+class PendingEntry:
+    x: dict[str, Value]  # the search variables of the suggestion (free and fixed)
+    binds: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # (type_id, ((label, var), ...))
+    expires: float
+
+    @property
+    def type_ids(self) -> frozenset[str]:
+        return frozenset(type_id for type_id, _ in self.binds)
+
+
+def _same(a: Value, b: object) -> bool:
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    try:
+        return bool(np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=0, atol=1e-9))
+    except (TypeError, ValueError):
+        return False
+
+
+class PendingBook:
+    """Thread-safe: the request threads add, the fit worker resolves."""
+
+    def __init__(self, ttl_s: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.ttl_s = ttl_s
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._by_kb: dict[str, list[PendingEntry]] = {}
+
+    def add(self, kb: str, x: Mapping[str, Value], binds: Sequence[tuple[str, Mapping[str, str]]]):
+        entry = PendingEntry(
+            dict(x),
+            tuple((t, tuple(sorted(b.items()))) for t, b in binds),
+            self.clock() + self.ttl_s,
+        )
+        with self._lock:
+            entries = self._live(kb)
+            entries.append(entry)
+            del entries[:-MAX_PER_KB]
+
+    def for_request(self, kb: str, type_ids: frozenset[str]) -> list[dict[str, Value]]:
+        """Pending points of requests sharing a constraint type with this one (or, for a request
+        without constraints, those of other unconstrained requests)."""
+        with self._lock:
+            entries = self._live(kb)
+            if type_ids:
+                return [e.x for e in entries if e.type_ids & type_ids]
+            return [e.x for e in entries if not e.binds]
+
+    def answered(self, kb: str, type_id: str, points: Sequence[Mapping[str, Value]]) -> int:
+        """Drop entries that `points` (new points of `type_id`, keyed by decision label) answer;
+        returns how many were dropped."""
+        if not points:
+            return 0
+        with self._lock:
+            entries = self._live(kb)
+            keep = [e for e in entries if not _answers(e, type_id, points)]
+            dropped = len(entries) - len(keep)
+            self._by_kb[kb] = keep
+            return dropped
+
+    def count(self, kb: str) -> int:
+        with self._lock:
+            return len(self._live(kb))
+
+    def _live(self, kb: str) -> list[PendingEntry]:
+        now = self.clock()
+        entries = [e for e in self._by_kb.get(kb, []) if e.expires > now]
+        self._by_kb[kb] = entries
+        return entries
+
+
+def _answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Value]]) -> bool:
+    for bound_type, bind in entry.binds:
+        if bound_type != type_id:
+            continue
+        for point in points:
+            if all(
+                label in point and var in entry.x and _same(entry.x[var], point[label])
+                for label, var in bind
+            ):
+                return True
+    return False

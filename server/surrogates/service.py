@@ -1,0 +1,110 @@
+"""Suggest and predict: validate a request against the types' decision spaces, then run MPF.
+
+Every mistake in a request is a 404 (unknown knowledge base or type) or a 422 naming the field;
+SpaceExhausted (a finite space wholly excluded) is a 409.
+"""
+
+from __future__ import annotations
+
+import secrets
+
+from client.models import PredictIn, PredictOut, SuggestIn, SuggestOut
+from server.errors import Conflict, InvalidInput
+from server.services.kbs import kb_id
+from server.surrogates.engine import ModelHandle, SurrogateEngine
+from surrogate.acquisition import MPF, ConstraintTerm
+from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
+from surrogate.optimize import SpaceExhausted, maximize, space_filling
+
+
+def _check_binding(i: int, type_id: str, handle: ModelHandle, body: SuggestIn) -> None:
+    bind = body.constraints[i].bind
+    where = f"constraints[{i}].bind"
+    for label in bind:
+        if label not in handle.space:
+            known = sorted(handle.space)
+            raise InvalidInput(f"{where}.{label}: not a decision of type {type_id} ({known})")
+    for label, domain in handle.space.items():
+        if label not in bind:
+            raise InvalidInput(f"{where}: decision {label!r} of type {type_id} is not bound")
+        var = bind[label]
+        if var in body.space and not same_domain(domain, body.space[var]):
+            raise InvalidInput(
+                f"space.{var}: domain does not match decision {label!r} of type {type_id} "
+                f"({domain.model_dump(exclude={'embedding'})})"
+            )
+        if var in body.fixed:
+            try:
+                value_column(f"fixed.{var}", domain, [body.fixed[var]])
+            except EncodingError as exc:
+                raise InvalidInput(str(exc)) from exc
+        elif var not in body.space:
+            raise InvalidInput(f"{where}.{label}: variable {var!r} is neither in space nor fixed")
+
+
+def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
+    """The MPF maximiser over `body.space` for the bound constraints (a space-filling point when
+    there are none), away from `exclude` and from suggestions still pending."""
+    terms: list[ConstraintTerm] = []
+    fitted: dict[str, int] = {}
+    for i, constraint in enumerate(body.constraints):
+        handle = engine.model(kb, constraint.type_id)
+        _check_binding(i, constraint.type_id, handle, body)
+        terms.append(
+            ConstraintTerm.build(
+                constraint.type_id, handle.predictor, handle.space, constraint.bind, body.fixed
+            )
+        )
+        fitted[constraint.type_id] = handle.n_fitted
+    if not terms:
+        with engine.store.transaction() as session:
+            kb_id(session, kb)
+    type_ids = frozenset(fitted)
+    pending = engine.pending.for_request(kb, type_ids)
+    seed = body.seed if body.seed is not None else secrets.randbits(31)
+    try:
+        if terms:
+            mpf = MPF(terms)
+            found = maximize(
+                mpf,
+                body.space,
+                fixed=body.fixed,
+                exclude=body.exclude,
+                pending=pending,
+                seed=seed,
+                config=engine.config.optimizer,
+            )
+            x = found.x
+            per_term = mpf.per_term(SpaceEncoder(body.space).columns([x]))[:, 0]
+        else:
+            x = space_filling(
+                body.space, fixed=body.fixed, exclude=body.exclude, pending=pending, seed=seed
+            )
+            per_term = []
+    except EncodingError as exc:
+        raise InvalidInput(str(exc)) from exc
+    except SpaceExhausted as exc:
+        raise Conflict(f"exclude: {exc}") from exc
+    p_feasible: dict[str, float] = {}
+    for term, p in zip(terms, per_term, strict=True):
+        p_feasible[term.name] = min(float(p), p_feasible.get(term.name, 1.0))
+    engine.pending.add(kb, x, [(c.type_id, c.bind) for c in body.constraints])
+    return SuggestOut(
+        x=x,
+        mpf=min(p_feasible.values()) if p_feasible else 0.5,
+        p_feasible=p_feasible,
+        method="mpf" if terms else "space-filling",
+        n_fitted=fitted,
+        n_pending=len(pending),
+    )
+
+
+def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> PredictOut:
+    """P(feasible) of each x (decision label -> value) under the type's current surrogate."""
+    handle = engine.model(kb, type_id)
+    try:
+        encoder = SpaceEncoder(handle.space)
+        z = encoder.encode(encoder.columns(body.x, where="x"))
+    except EncodingError as exc:
+        raise InvalidInput(str(exc)) from exc
+    return PredictOut(p_feasible=[float(p) for p in handle.predictor.proba(z)])

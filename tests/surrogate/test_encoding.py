@@ -1,0 +1,77 @@
+"""Decision spaces -> GP inputs and back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from client.models import CategoricalDomain, ContinuousDomain
+from surrogate.encoding import EncodingError, SpaceEncoder, same_domain
+
+DIRS = ["front", "right", "top", "back", "left"]
+APPROACH = {
+    "front": [1.0, 0.0, 0.0],
+    "right": [0.0, -1.0, 0.0],
+    "top": [0.0, 0.0, 1.0],
+    "back": [-1.0, 0.0, 0.0],
+    "left": [0.0, 1.0, 0.0],
+}
+
+
+def space(embedding: bool) -> dict:
+    return {
+        "dir": CategoricalDomain(choices=DIRS, embedding=APPROACH if embedding else None),
+        "pose": ContinuousDomain(low=[-1.0, 0.0, -3.0], high=[1.0, 2.0, 3.0]),
+    }
+
+
+@pytest.mark.parametrize("embedding", [False, True])
+def test_points_round_trip_through_gp_inputs(embedding: bool) -> None:
+    encoder = SpaceEncoder(space(embedding))
+    rng = np.random.default_rng(0)
+    points = [
+        {"dir": DIRS[i % 5], "pose": [rng.uniform(-1, 1), rng.uniform(0, 2), rng.uniform(-3, 3)]}
+        for i in range(20)
+    ]
+    z = encoder.encode(encoder.columns(points))
+    assert z.shape == (20, encoder.dim) and z.min() >= 0.0 and z.max() <= 1.0
+    back = encoder.points(encoder.decode(z))
+    for original, decoded in zip(points, back, strict=True):
+        assert decoded["dir"] == original["dir"]
+        assert np.allclose(decoded["pose"], original["pose"])
+
+
+def test_one_hot_keeps_every_pair_of_choices_equally_far() -> None:
+    encoder = SpaceEncoder({"dir": CategoricalDomain(choices=DIRS)})
+    z = encoder.encode({"dir": np.arange(5)})
+    d = np.linalg.norm(z[:, None] - z[None], axis=-1)
+    off_diagonal = d[~np.eye(5, dtype=bool)]
+    assert encoder.dim == 5 and np.allclose(off_diagonal, off_diagonal[0])
+
+
+def test_embedding_carries_geometry_not_codes() -> None:
+    encoder = SpaceEncoder({"dir": CategoricalDomain(choices=DIRS, embedding=APPROACH)})
+    z = encoder.encode({"dir": np.arange(5)})
+    dist = lambda a, b: np.linalg.norm(z[DIRS.index(a)] - z[DIRS.index(b)])  # noqa: E731
+    assert encoder.dim == 3
+    assert dist("front", "back") > dist("front", "right")
+    assert np.isclose(dist("front", "right"), dist("front", "left"))
+
+
+def test_bad_values_name_their_field() -> None:
+    encoder = SpaceEncoder(space(False))
+    with pytest.raises(EncodingError, match=r"x\[1\]\.dir"):
+        encoder.columns([{"dir": "top", "pose": [0, 1, 0]}, {"dir": "up", "pose": [0, 1, 0]}], "x")
+    with pytest.raises(EncodingError, match="pose"):
+        encoder.columns([{"dir": "top", "pose": [5.0, 1.0, 0.0]}])
+    with pytest.raises(EncodingError, match="pose"):
+        encoder.columns([{"dir": "top", "pose": [0.0, 1.0]}])
+    with pytest.raises(EncodingError, match="missing"):
+        encoder.columns([{"dir": "top"}])
+
+
+def test_same_domain_compares_values_not_embeddings() -> None:
+    assert same_domain(space(True)["dir"], space(False)["dir"])
+    assert not same_domain(space(True)["dir"], CategoricalDomain(choices=DIRS[:4]))
+    assert not same_domain(space(True)["pose"], ContinuousDomain(low=[0, 0, 0], high=[1, 1, 1]))
+    assert not same_domain(space(True)["pose"], space(True)["dir"])

@@ -1,0 +1,101 @@
+"""GP surrogates: real gpytorch fits on small data."""
+
+from __future__ import annotations
+
+import gpytorch
+import numpy as np
+import torch
+
+from surrogate.models import (
+    _SVGP,
+    PriorPredictor,
+    VGPPredictor,
+    fit_classifier,
+    fit_label_regression,
+    fit_regression,
+)
+
+
+def half_space(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    z = np.random.default_rng(seed).random((n, 3))
+    return z, z[:, 0] + 0.5 * z[:, 1] > 0.7
+
+
+def test_classifier_learns_a_half_space() -> None:
+    z, y = half_space(80, 0)
+    fit = fit_classifier(z, y, seed=0)
+    zt, yt = half_space(500, 1)
+    assert fit.kind == "vgp" and fit.n_fitted == 80
+    assert ((fit.predictor.proba(zt) > 0.5) == yt).mean() > 0.9
+    assert fit.train_accuracy is not None and fit.train_accuracy > 0.9
+    assert len(fit.lengthscales or []) == 3
+    assert fit.lengthscales[2] > fit.lengthscales[0]  # the irrelevant input matters least
+
+
+def test_cached_predictor_matches_gpytorch() -> None:
+    z, y = half_space(40, 2)
+    fit = fit_classifier(z, y, seed=0, max_iters=30)
+    model = _SVGP(torch.as_tensor(fit.warm_state["model"]["variational_strategy.inducing_points"]))
+    model = model.double()
+    model.load_state_dict(fit.warm_state["model"])
+    model.eval()
+    zt = np.random.default_rng(3).random((50, 3))
+    with torch.no_grad():
+        latent = model(torch.as_tensor(zt))
+        p = gpytorch.likelihoods.BernoulliLikelihood()(latent).mean.numpy()
+    assert isinstance(fit.predictor, VGPPredictor)
+    assert np.allclose(fit.predictor.proba(zt), p, atol=1e-4)
+
+
+def test_inducing_points_are_bounded_and_warm_start_is_cheaper() -> None:
+    z, y = half_space(300, 4)
+    cold = fit_classifier(z, y, seed=0, max_inducing=32)
+    assert cold.predictor.inducing.shape == (32, 3)
+    z2, y2 = half_space(20, 5)
+    warm = fit_classifier(
+        np.vstack([z, z2]), np.concatenate([y, y2]), seed=0, warm=cold, max_inducing=32
+    )
+    assert warm.iterations < cold.iterations
+    zt, yt = half_space(500, 6)
+    assert ((warm.predictor.proba(zt) > 0.5) == yt).mean() > 0.9
+
+
+def test_prior_for_few_points_or_one_class() -> None:
+    z = np.array([[0.2, 0.2], [0.8, 0.8]])
+    fit = fit_classifier(z, np.array([False, False]), seed=0)
+    assert fit.kind == "prior" and isinstance(fit.predictor, PriorPredictor)
+    p = fit.predictor.proba(np.array([[0.2, 0.2], [0.5, 0.5], [0.2, 0.9]]))
+    assert p[0] < 0.1 and p[1] > p[0] and abs(p[2] - 0.5) < 0.05
+    mixed = fit_classifier(z, np.array([True, False]), seed=0)
+    assert mixed.kind == "prior" and mixed.predictor.proba(z[:1])[0] > 0.9
+
+
+def test_imbalanced_classes_still_find_the_small_feasible_region() -> None:
+    rng = np.random.default_rng(7)
+    z = rng.random((120, 2))
+    y = (z[:, 0] > 0.8) & (z[:, 1] > 0.6)  # ~8% feasible
+    fit = fit_classifier(z, y, seed=0)
+    assert fit.predictor.proba(np.array([[0.9, 0.8]]))[0] > 0.5
+    assert fit.predictor.proba(np.array([[0.2, 0.2]]))[0] < 0.5
+
+
+def test_regression_fits_and_reports_uncertainty() -> None:
+    rng = np.random.default_rng(8)
+    z = rng.random((30, 2))
+    y = np.sin(6 * z[:, 0]) + 0.1 * z[:, 1]
+    fit = fit_regression(z, y, seed=0)
+    mean, std = fit.predictor.predict(np.array([[0.25, 0.5], [0.25, 0.5]]))
+    assert abs(mean[0] - np.sin(1.5)) < 0.15
+    _far_mean, far_std = fit.predictor.predict(np.array([[3.0, 3.0]]))
+    assert far_std[0] > 5 * std[0]
+    again = fit_regression(z, y, seed=0, warm=fit)
+    assert again.iterations <= fit.iterations
+
+
+def test_label_regression_variant_gives_probabilities() -> None:
+    z, y = half_space(60, 9)
+    fit = fit_label_regression(z, y, seed=0)
+    zt, yt = half_space(300, 10)
+    p = fit.predictor.proba(zt)
+    assert fit.kind == "label-regression" and p.min() >= 0 and p.max() <= 1
+    assert ((p > 0.5) == yt).mean() > 0.85

@@ -1,0 +1,114 @@
+"""MPF and UCB maximised over mixed spaces: intersections, fixed variables, exclude, seeds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from client.models import CategoricalDomain, ContinuousDomain
+from surrogate.acquisition import MPF, ConstraintTerm, ucb
+from surrogate.encoding import SpaceEncoder
+from surrogate.models import fit_classifier, fit_regression
+from surrogate.optimize import SpaceExhausted, maximize, space_filling
+
+DIRS = ["front", "right", "top", "back", "left"]
+SPACE = {
+    "dir": CategoricalDomain(choices=DIRS),
+    "pose": ContinuousDomain(low=[0.0, 0.0], high=[1.0, 1.0]),
+}
+BIND = {"dir": "dir", "pose": "pose"}
+
+
+def right_half(c: dict) -> np.ndarray:
+    return c["pose"][:, 0] > 0.6
+
+
+def low_band_not_top(c: dict) -> np.ndarray:
+    return (c["pose"][:, 1] < 0.35) & (c["dir"] != DIRS.index("top"))
+
+
+@pytest.fixture(scope="module")
+def mpf() -> MPF:
+    encoder = SpaceEncoder(SPACE)
+    rng = np.random.default_rng(0)
+    points = [{"dir": DIRS[rng.integers(5)], "pose": rng.random(2).tolist()} for _ in range(80)]
+    cols = encoder.columns(points)
+    z = encoder.encode(cols)
+    terms = [
+        ConstraintTerm.build(
+            name, fit_classifier(z, truth(cols), seed=0).predictor, SPACE, BIND, {}
+        )
+        for name, truth in (("a", right_half), ("b", low_band_not_top))
+    ]
+    return MPF(terms)
+
+
+def truly_feasible(x: dict) -> bool:
+    cols = SpaceEncoder(SPACE).columns([x])
+    return bool(right_half(cols)[0] and low_band_not_top(cols)[0])
+
+
+def test_mpf_lands_in_the_intersection_of_two_constraints(mpf: MPF) -> None:
+    found = [maximize(mpf, SPACE, seed=seed) for seed in range(5)]
+    assert all(truly_feasible(s.x) for s in found)
+    assert all(s.value > 0.5 for s in found)
+
+
+def test_seed_reproduces_and_different_seeds_explore(mpf: MPF) -> None:
+    assert maximize(mpf, SPACE, seed=11) == maximize(mpf, SPACE, seed=11)
+    xs = {str(maximize(mpf, SPACE, seed=s).x) for s in range(4)}
+    assert len(xs) > 1
+
+
+def test_fixed_variables_are_respected(mpf: MPF) -> None:
+    top = maximize(mpf, SPACE, fixed={"dir": "top"}, seed=0)
+    assert top.x["dir"] == "top" and top.value < 0.5  # top breaks constraint b everywhere
+    pose = maximize(mpf, SPACE, fixed={"pose": [0.9, 0.1]}, seed=0)
+    assert pose.x["pose"] == [0.9, 0.1] and pose.x["dir"] != "top"
+
+
+def test_excluded_points_are_never_proposed(mpf: MPF) -> None:
+    first = maximize(mpf, SPACE, seed=3)
+    second = maximize(mpf, SPACE, exclude=[first.x], seed=3)
+    assert second.x != first.x
+    cat = {"dir": SPACE["dir"]}
+    only_dir = MPF(
+        [ConstraintTerm.build("c", mpf.terms[1].predictor, SPACE, BIND, {"pose": [0.9, 0.1]})]
+    )
+    left = maximize(only_dir, cat, exclude=[{"dir": d} for d in DIRS if d != "top"], seed=0)
+    assert left.x == {"dir": "top"}
+    with pytest.raises(SpaceExhausted):
+        maximize(only_dir, cat, exclude=[{"dir": d} for d in DIRS], seed=0)
+
+
+def test_pending_points_push_suggestions_apart(mpf: MPF) -> None:
+    first = maximize(mpf, SPACE, seed=5)
+    second = maximize(mpf, SPACE, pending=[first.x], seed=5)
+    gap = np.linalg.norm(np.subtract(first.x["pose"], second.x["pose"]))
+    assert second.x["dir"] != first.x["dir"] or gap > 0.1
+    assert truly_feasible(second.x)
+
+
+def test_space_filling_stays_away_from_excluded_points() -> None:
+    rng = np.random.default_rng(1)
+    exclude = [{"dir": d, "pose": (0.5 * rng.random(2)).tolist()} for d in DIRS for _ in range(4)]
+    x = space_filling(SPACE, exclude=exclude, seed=0)
+    assert max(x["pose"]) > 0.5
+    assert space_filling(SPACE, exclude=exclude, seed=0) == x
+
+
+def test_ucb_finds_the_reward_peak_with_earlier_decisions_fixed() -> None:
+    space = {
+        "grasp": CategoricalDomain(choices=DIRS),
+        "place": ContinuousDomain(low=[-1.0], high=[1.0]),
+    }
+    encoder = SpaceEncoder(space)
+    rng = np.random.default_rng(2)
+    seen = [{"grasp": "top", "place": [float(v)]} for v in rng.uniform(-1, 1, 12)]
+    reward = -((encoder.columns(seen)["place"][:, 0] - 0.4) ** 2)
+    fit = fit_regression(encoder.encode_points(seen), reward, seed=0)
+    fixed = {"grasp": "top"}
+    found = maximize(
+        ucb(fit.predictor, space, beta=0.01, fixed=fixed), space, fixed=fixed, exclude=seen, seed=0
+    )
+    assert found.x["grasp"] == "top" and abs(found.x["place"][0] - 0.4) < 0.15
