@@ -44,7 +44,10 @@ def test_plan_without_json_summarises_in_words(capsys):
 )
 def test_plan_mistakes_are_one_line_errors(argv, message):
     out = subprocess.run(
-        [sys.executable, "-m", "cpkb", "plan", *argv, "--json"], capture_output=True, text=True
+        [sys.executable, "-m", "cpkb", "plan", *argv, "--json"],
+        capture_output=True,
+        text=True,
+        timeout=180,
     )
     assert out.returncode == 2, out.stderr
     assert message in out.stderr and "Traceback" not in out.stderr
