@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import math
 import os
@@ -330,7 +331,9 @@ def running_server(db_url: str, token: str | None) -> Iterator[str]:
     cmd = [sys.executable, "-m", "cpkb", "serve", "--db", db_url]
     cmd += ["--host", "127.0.0.1", "--port", str(port)]
     with tempfile.TemporaryFile() as log:
-        proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT, cwd=REPO)
+        proc = subprocess.Popen(
+            cmd, env=env, stdout=log, stderr=subprocess.STDOUT, cwd=REPO, start_new_session=True
+        )
         base = f"http://127.0.0.1:{port}"
         try:
             wait_healthy(base, proc, timeout=120.0)
@@ -346,6 +349,9 @@ def running_server(db_url: str, token: str | None) -> Iterator[str]:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait()
+            # Anything the server left in its process group (a fit worker) goes with it.
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
 
 
 def wait_healthy(base: str, proc: subprocess.Popen, timeout: float) -> None:
@@ -408,6 +414,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
+    # A SIGTERM (e.g. from `timeout`) unwinds normally: the server is stopped, the database dropped.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if not 1 <= args.planners <= 256:
         parser.error("--planners must be between 1 and 256")
     args.out.mkdir(parents=True, exist_ok=True)

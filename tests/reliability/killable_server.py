@@ -3,6 +3,7 @@ read-backs of what it stored."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -40,7 +41,9 @@ class KillableServer:
         log = (self.log_dir / f"server-{self.starts}.log").open("wb")
         cmd = [sys.executable, "-m", "cpkb", "serve", "--db", self.db_url]
         cmd += ["--host", "127.0.0.1", "--port", str(self.port)]
-        self.proc = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(
+            cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
+        )
         log.close()
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -59,16 +62,25 @@ class KillableServer:
         assert self.proc is not None
         self.proc.send_signal(signal.SIGKILL)
         self.proc.wait(timeout=10)
+        self._reap()
 
     def stop(self) -> None:
         if self.proc is None or self.proc.poll() is not None:
             return
         self.proc.send_signal(signal.SIGTERM)
         try:
-            self.proc.wait(timeout=15)
+            self.proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait(timeout=10)
+        self._reap()
+
+    def _reap(self) -> None:
+        """SIGKILL what the dead server left in its process group: its fit worker does not exit
+        by itself when the server dies (reported to the surrogate engine's owner)."""
+        assert self.proc is not None
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(self.proc.pid, signal.SIGKILL)
 
     def log_tail(self, n: int = 3000) -> str:
         path = self.log_dir / f"server-{self.starts}.log"
