@@ -35,7 +35,9 @@ def same_domain(a: Domain, b: Domain) -> bool:
     if isinstance(a, CategoricalDomain) and isinstance(b, CategoricalDomain):
         return list(a.choices) == list(b.choices)
     if isinstance(a, ContinuousDomain) and isinstance(b, ContinuousDomain):
-        return np.allclose(a.low, b.low) and np.allclose(a.high, b.high)
+        if len(a.low) != len(b.low):
+            return False
+        return bool(np.allclose(a.low, b.low) and np.allclose(a.high, b.high))
     return False
 
 

@@ -36,7 +36,7 @@ def mpf() -> MPF:
     z = encoder.encode(cols)
     terms = [
         ConstraintTerm.build(
-            name, fit_classifier(z, truth(cols), seed=0).predictor, SPACE, BIND, {}
+            name, fit_classifier(z, truth(cols), seed=0, max_iters=100).predictor, SPACE, BIND, {}
         )
         for name, truth in (("a", right_half), ("b", low_band_not_top))
     ]
@@ -106,7 +106,7 @@ def test_ucb_finds_the_reward_peak_with_earlier_decisions_fixed() -> None:
     rng = np.random.default_rng(2)
     seen = [{"grasp": "top", "place": [float(v)]} for v in rng.uniform(-1, 1, 12)]
     reward = -((encoder.columns(seen)["place"][:, 0] - 0.4) ** 2)
-    fit = fit_regression(encoder.encode_points(seen), reward, seed=0)
+    fit = fit_regression(encoder.encode_points(seen), reward, seed=0, max_iters=60)
     fixed = {"grasp": "top"}
     found = maximize(
         ucb(fit.predictor, space, beta=0.01, fixed=fixed), space, fixed=fixed, exclude=seen, seed=0
