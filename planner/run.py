@@ -125,24 +125,105 @@ def run_plan(
     worker: str | None = None,
     db_url: str | None = None,
 ) -> PlanResult:
-    """Search bindings for `task` with `method` until the first feasible binding list."""
+    """Search bindings for `task` with `method` until the first feasible binding list (or, with
+    `stop_at_first=False`, through the whole budget). `quiet=False` with no `progress` callback
+    draws a progress line on stderr."""
     if method not in sampler_registry.methods():
         raise ValueError(
             f"unknown method {method!r}; known: {', '.join(sampler_registry.methods())}"
         )
     if max_rollouts < 1:
         raise ValueError("max_rollouts must be at least 1")
+    options = {
+        "max_rollouts": max_rollouts,
+        "kb_url": kb_url,
+        "kb": kb,
+        "token": token,
+        "stop_at_first": stop_at_first,
+        "gui": gui,
+        "worker": worker,
+        "db_url": db_url,
+    }
+    if not quiet and progress is None:
+        from planner.display import live_progress
+
+        label = f"{getattr(task, 'name', task)} {method}"
+        with live_progress(label, max_rollouts) as shown:
+            return _plan(task, method, seed, progress=shown, **options)
+    return _plan(task, method, seed, progress=progress, **options)
+
+
+def _plan(
+    task: str | Path | BindingWorld,
+    method: str,
+    seed: int,
+    *,
+    max_rollouts: int,
+    kb_url: str | None,
+    kb: str,
+    token: str | None,
+    stop_at_first: bool,
+    progress: Callable[[Progress], None] | None,
+    gui: bool,
+    worker: str | None,
+    db_url: str | None,
+) -> PlanResult:
     seed_everything(seed)
     started = time.perf_counter()
     world = load_world(task, seed, gui=gui)
-    if not sampler_registry.uses_knowledge(method):
-        sampler = sampler_registry.make(method, seed=seed, world=world)
-        try:
-            return _search(
-                world, method, seed, sampler, None, started, max_rollouts, stop_at_first, progress
-            )
-        finally:
-            sampler.close()
+    try:
+        if not sampler_registry.uses_knowledge(method):
+            sampler = sampler_registry.make(method, seed=seed, world=world)
+            try:
+                return _search(
+                    world,
+                    method,
+                    seed,
+                    sampler,
+                    None,
+                    started,
+                    max_rollouts,
+                    stop_at_first,
+                    progress,
+                )
+            finally:
+                sampler.close()
+        return _plan_with_knowledge(
+            world,
+            method,
+            seed,
+            started,
+            max_rollouts,
+            stop_at_first,
+            progress,
+            kb_url=kb_url,
+            kb=kb,
+            token=token,
+            worker=worker,
+            db_url=db_url,
+        )
+    finally:
+        if world is not task:
+            close = getattr(world, "close", None)
+            if close is not None:
+                close()
+
+
+def _plan_with_knowledge(
+    world: BindingWorld,
+    method: str,
+    seed: int,
+    started: float,
+    max_rollouts: int,
+    stop_at_first: bool,
+    progress: Callable[[Progress], None] | None,
+    *,
+    kb_url: str | None,
+    kb: str,
+    token: str | None,
+    worker: str | None,
+    db_url: str | None,
+) -> PlanResult:
     from client import CpkbClient
     from planner.knowledge import KnowledgeSession
 

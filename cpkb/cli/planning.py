@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from pathlib import Path
 from typing import Any
 
 from cpkb.cli import CliError
@@ -76,16 +75,7 @@ def _plan(args: argparse.Namespace) -> int:
         stop_at_first=not args.full_budget,
         gui=args.gui,
     )
-    if args.json or args.quiet:
-        result = _run(args, **options)
-    else:
-        from planner.display import live_progress
-
-        label = (
-            f"{Path(args.task).stem if args.task.endswith('.yaml') else args.task} {args.method}"
-        )
-        with live_progress(label, args.max_rollouts) as progress:
-            result = _run(args, progress=progress, **options)
+    result = _run(args, quiet=args.json or args.quiet, **options)
     if args.json:
         print(json.dumps(result.to_json()))
     else:
