@@ -48,6 +48,7 @@ class KnowledgeClient(Protocol):
     def suggest(self, kb: str, request: SuggestIn) -> SuggestOut: ...
 
 
+MATCH_CHUNK = 500  # graphs per types/match request (the contract allows up to 1000)
 Key = tuple[int, int, str | None]  # (transition index, call index, culprit body)
 
 
@@ -138,7 +139,11 @@ class KnowledgeSession:
         graphs = [self._unmatched[k].graph for k in keys]
         started = time.perf_counter()
         try:
-            results: list[MatchResult | None] = list(self.client.match_types(self.kb, graphs))
+            results: list[MatchResult | None] = []
+            for start in range(0, len(graphs), MATCH_CHUNK):
+                results.extend(
+                    self.client.match_types(self.kb, graphs[start : start + MATCH_CHUNK])
+                )
         except BadRequest:
             results = [self._match_one(graph) for graph in graphs]
         except Exception as exc:  # a knowledge-base outage must not stop the search
