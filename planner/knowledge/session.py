@@ -109,6 +109,7 @@ class KnowledgeSession:
         self._by_check: dict[tuple[int, int], list[Activation]] = {}
         self._pending: list[tuple[FailureGraph, dict[str, Value], bool]] = []
         self._unmatched: dict[Key, FailureGraph] = {}
+        self._types: set[str] = set()
         self._rollout = 0
 
     # -- activation ---------------------------------------------------------------------------
@@ -174,6 +175,9 @@ class KnowledgeSession:
         activation = Activation(result.type_id, fg, transferred, result.n_points, stored_with)
         self._active[key] = activation
         self._by_check.setdefault(fg.check, []).append(activation)
+        if result.type_id in self._types:
+            return  # the same type at one more check: counted once
+        self._types.add(result.type_id)
         self.stats.types_active += 1
         if transferred:
             self.stats.types_activated += 1

@@ -1,5 +1,5 @@
-"""A real knowledge-base service for planner tests: `cpkb serve` on a fresh SQLite file, shared
-by a test module; every test gets its own fresh knowledge base in it."""
+"""A real knowledge-base service for planner tests: `cpkb serve` on a fresh SQLite file, started
+once per session (it takes seconds to start); every test gets its own fresh knowledge base."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ class LiveKb:
     name: str
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def kb_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     from cpkb.embedded import embedded_service
 
