@@ -6,7 +6,7 @@ genes are exchanged whole between parents and re-drawn uniformly on mutation, so
 exact and never treated as ordinal. A finite space (categoricals only, small) is enumerated instead.
 
 The score NSGA-II maximises is the acquisition plus a small exploration bonus (distance to the
-nearest excluded or pending point) minus a penalty around pending and excluded points, so that
+nearest excluded or pending point) minus a penalty around pending points, so that
 equal-probability regions are explored and concurrent planners are pushed apart. An excluded point
 is never returned.
 """
@@ -45,7 +45,7 @@ class OptimizerConfig:
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
     explore: float = 0.02  # bonus per unit of normalised distance to excluded/pending points
-    penalty: float = 0.3  # score removed at an excluded or pending point
+    penalty: float = 0.3  # score removed at a pending point (excluded ones are removed exactly)
     radius: float = 0.1  # penalty reach, in normalised distance
     enumerate_limit: int = 2048
     eliminate_duplicates: bool = True
@@ -130,6 +130,7 @@ class _Scorer:
         genome: _Genome,
         encoder: SpaceEncoder,
         avoid: np.ndarray,
+        n_excluded: int,
         config: OptimizerConfig,
         fixed_cols: Columns,
     ) -> None:
@@ -137,7 +138,8 @@ class _Scorer:
         self.fixed_cols = fixed_cols  # 1-row columns of fixed space variables
         self.genome = genome
         self.encoder = encoder
-        self.avoid = avoid  # (k, D) encoded excluded + pending points
+        self.avoid = avoid  # (k, D) encoded excluded, then pending points
+        self.n_excluded = n_excluded
         self.config = config
         self.norm = np.sqrt(max(encoder.dim, 1))
 
@@ -155,7 +157,10 @@ class _Scorer:
         d = self.distances(self.encoder.encode(cols))
         cfg = self.config
         bonus = cfg.explore * np.minimum(d.min(axis=1), 1.0)
-        penalty = cfg.penalty * np.exp(-0.5 * (d / cfg.radius) ** 2).max(axis=1)
+        pending = d[:, self.n_excluded :]
+        if pending.shape[1] == 0:
+            return raw + bonus, raw
+        penalty = cfg.penalty * np.exp(-0.5 * (pending / cfg.radius) ** 2).max(axis=1)
         return raw + bonus - penalty, raw
 
 
@@ -252,7 +257,8 @@ def maximize(
     excluded, pending_cols = _avoid_rows(free, fixed_in_space, exclude, pending)
     avoid = np.vstack([encoder.encode(excluded), encoder.encode(pending_cols)])
     fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
-    scorer = _Scorer(acquisition, genome, encoder, avoid, config, fixed_cols)
+    n_excluded = len(next(iter(excluded.values())))
+    scorer = _Scorer(acquisition, genome, encoder, avoid, n_excluded, config, fixed_cols)
 
     genes = _candidates(genome, free, scorer, config, seed)
     ok = ~_is_excluded(genome.columns(genes), excluded, free)
