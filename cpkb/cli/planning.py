@@ -13,7 +13,12 @@ METHODS = ("quasi-random", "mcts-bo", "cp-bo")
 
 
 def register(subparsers: Any) -> None:
-    plan = subparsers.add_parser("plan", help="search bindings for one task")
+    plan = subparsers.add_parser(
+        "plan",
+        help="search bindings for one task",
+        epilog="Exit status: 0 when a feasible binding list was found, 1 when the budget ran "
+        "out, 2 for a usage error.",
+    )
     plan.add_argument("--task", required=True, help="a task name (see `cpkb tasks`) or task file")
     plan.add_argument("--method", default="cp-bo", help=f"{' | '.join(METHODS)} (default cp-bo)")
     plan.add_argument("--seed", type=int, default=0, help="the run's seed (default 0)")
