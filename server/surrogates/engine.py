@@ -113,15 +113,24 @@ class SurrogateEngine:
         self._prefit()
 
     def stop(self) -> None:
+        """Stop without waiting for a fit in flight: it is of no use to a stopping server, so
+        its worker is ended and the coordinator leaves at once."""
         with self._cond:
             self._stopping = True
             self._cond.notify_all()
             thread, self._thread = self._thread, None
+            executor, self._executor = self._executor, None
+        if isinstance(executor, ProcessPoolExecutor):
+            workers = list((getattr(executor, "_processes", None) or {}).values())
+            executor.shutdown(wait=False, cancel_futures=True)
+            for worker in workers:
+                worker.terminate()
+            for worker in workers:
+                worker.join(timeout=5)
+        elif executor is not None:
+            executor.shutdown(wait=False, cancel_futures=True)
         if thread is not None:
             thread.join(timeout=30)
-        if self._executor is not None:
-            self._executor.shutdown(wait=True, cancel_futures=True)
-            self._executor = None
 
     def _new_executor(self, in_process: bool | None = None) -> Executor:
         if self.config.fit_in_process if in_process is None else in_process:
@@ -244,6 +253,8 @@ class SurrogateEngine:
                 with self._cond:
                     self._entries.pop(key, None)
             except Exception as exc:  # a failed fit must not stop the worker
+                if self._stopping:
+                    return
                 log.exception("surrogate fit failed for %s/%s", *key)
                 self._mark_error(key, exc)
             finally:
@@ -276,8 +287,11 @@ class SurrogateEngine:
             entry.fitted_at = datetime.now(UTC)
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
-        if self._executor is None:
-            self._executor = self._new_executor()
+        with self._cond:
+            if self._stopping:
+                raise RuntimeError("the surrogate engine is stopping")
+            if self._executor is None:
+                self._executor = self._new_executor()
         args = (z, y, 0, warm, self.config.max_inducing)
         try:
             future = self._executor.submit(fitproc.fit_job, *args)
@@ -292,6 +306,8 @@ class SurrogateEngine:
         try:
             return future.result()
         except BrokenProcessPool:
+            if self._stopping:
+                raise
             log.warning("fit worker died; starting a new one")
             self._executor = self._new_executor()
             return self._executor.submit(fitproc.fit_job, *args).result()

@@ -3,6 +3,10 @@ training never holds the server's GIL). Imports only the surrogate library."""
 
 from __future__ import annotations
 
+import os
+import threading
+import time
+
 import numpy as np
 import torch
 
@@ -10,9 +14,20 @@ from surrogate.models import Fit, fit_classifier, warm_up
 
 
 def init_worker(threads: int) -> None:
-    """Process initialiser: leave the other core to the server, pay the first-fit cost now."""
+    """Process initialiser: die with the server, leave the other core to it, pay the
+    first-fit cost now."""
+    parent = os.getppid()
+    threading.Thread(target=_exit_when_orphaned, args=(parent,), daemon=True).start()
     torch.set_num_threads(threads)
     warm_up()
+
+
+def _exit_when_orphaned(parent: int) -> None:
+    """A killed server cannot stop its fit worker, and the worker holds both ends of its
+    queues, so it would never see EOF: poll the parent and leave when it is gone."""
+    while os.getppid() == parent:
+        time.sleep(0.5)
+    os._exit(0)
 
 
 def fit_job(z: np.ndarray, y: np.ndarray, seed: int, warm: Fit | None, max_inducing: int) -> Fit:
