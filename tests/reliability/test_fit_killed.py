@@ -1,4 +1,4 @@
-"""A surrogate fit killed half-way leaves no broken model behind.
+"""A surrogate fit killed half-way leaves no broken model behind, and no orphan.
 
 Fits run in a child process of the server and their results live only in the server's memory,
 rebuilt from the stored points (so a whole-server kill, tested in test_crash_safety, leaves no
@@ -120,6 +120,15 @@ def fit_workers(server_pid: int) -> list[int]:
     return workers
 
 
+def alive(pid: int) -> bool:
+    """Running (not gone, not a zombie waiting to be reaped)."""
+    try:
+        status = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return False
+    return status.rsplit(")", 1)[1].split()[0] != "Z"
+
+
 @pytest.mark.slow
 def test_killed_fits_leave_complete_models(sqlite_url: str, tmp_path: Path) -> None:
     server = KillableServer(sqlite_url, tmp_path)
@@ -149,5 +158,15 @@ def test_killed_fits_leave_complete_models(sqlite_url: str, tmp_path: Path) -> N
             assert not set(workers) & set(fit_workers(server.proc.pid)), "worker not replaced"
             predict(http, type_id)
             suggest_works(http, type_id)
+
+        # A SIGKILLed server cannot stop its fit worker: the worker must notice and leave.
+        workers = fit_workers(server.proc.pid)
+        assert workers
+        server.proc.send_signal(signal.SIGKILL)
+        server.proc.wait(timeout=10)
+        deadline = time.monotonic() + 15
+        while any(alive(pid) for pid in workers):
+            assert time.monotonic() < deadline, "the fit worker outlived its server"
+            time.sleep(0.1)
     finally:
         server.stop()
