@@ -46,6 +46,8 @@ class Settings(BaseSettings):
     log_level: str = "info"
 
     # Surrogates (server.surrogates): fits run in a child process unless false; see EngineConfig.
+    # Disabled, the service stores and serves points only (suggest / predict answer 503).
+    surrogate_enabled: bool = True
     surrogate_fit_process: bool = True
     surrogate_max_inducing: int = Field(default=128, ge=8, le=1024)
     surrogate_refresh_s: float = Field(default=2.0, ge=0)

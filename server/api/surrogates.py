@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request
 
 from client.models import PredictIn, PredictOut, SuggestIn, SuggestOut
+from server.errors import Unavailable
 from server.surrogates import service
 from server.surrogates.engine import SurrogateEngine
 
@@ -14,7 +15,10 @@ router = APIRouter(prefix="/v1/kbs/{kb}", tags=["surrogates"])
 
 
 def _engine(request: Request) -> SurrogateEngine:
-    return request.app.state.surrogates
+    engine = request.app.state.surrogates
+    if engine is None:
+        raise Unavailable("surrogates are disabled in this service (CPKB_SURROGATE_ENABLED=false)")
+    return engine
 
 
 EngineDep = Annotated[SurrogateEngine, Depends(_engine)]

@@ -14,6 +14,9 @@ def install(app: FastAPI) -> None:
     from surrogate.optimize import OptimizerConfig
 
     settings = app.state.settings
+    app.state.surrogates = None
+    if not settings.surrogate_enabled:
+        return
     config = EngineConfig(
         fit_in_process=settings.surrogate_fit_process,
         max_inducing=settings.surrogate_max_inducing,
