@@ -114,8 +114,7 @@ class PyBulletWorld:
         return TransitionOutcome(tuple(checks), new_state, time.perf_counter() - started)
 
     def _check_bindings(self, index: int, bindings: Mapping[str, Value]) -> None:
-        needed = [d for d in self.skeleton.decisions[: index + 1]]
-        for d in needed:
+        for d in self.skeleton.decisions[: index + 1]:
             if d.var not in bindings:
                 raise KeyError(f"{self.name}: transition {index} needs a binding for {d.var}")
             value = bindings[d.var]
