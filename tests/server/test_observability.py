@@ -1,0 +1,161 @@
+"""Metrics at /metrics and structured logs, over a real app and database."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import sys
+from typing import Any
+
+import pytest
+from prometheus_client.parser import text_string_to_metric_families
+
+from server.observability import (
+    REGISTRY,
+    JsonFormatter,
+    configure_json_logging,
+    record_fit,
+)
+from tests.service_support import make_graph, make_point
+
+
+def _value(name: str, **labels: str) -> float:
+    return REGISTRY.get_sample_value(name, labels) or 0.0
+
+
+def _scrape(client: Any) -> dict[str, list[Any]]:
+    response = client.get("/metrics")
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/plain")
+    return {f.name: f.samples for f in text_string_to_metric_families(response.text)}
+
+
+def test_requests_are_counted_and_timed_by_route_template(app_client: Any) -> None:
+    route = "/v1/kbs/{kb}/types"
+    ok = {"method": "GET", "route": route, "status": "200"}
+    missing = {"method": "GET", "route": route, "status": "404"}
+    before_ok, before_missing = (
+        _value("cpkb_http_requests_total", **ok),
+        _value("cpkb_http_requests_total", **missing),
+    )
+    before_timed = _value("cpkb_http_request_duration_seconds_count", method="GET", route=route)
+    for _ in range(3):
+        assert app_client.get("/v1/kbs/default/types").status_code == 200
+    assert app_client.get("/v1/kbs/nope/types").status_code == 404
+    assert _value("cpkb_http_requests_total", **ok) - before_ok == 3
+    assert _value("cpkb_http_requests_total", **missing) - before_missing == 1
+    assert (
+        _value("cpkb_http_request_duration_seconds_count", method="GET", route=route) - before_timed
+        == 4
+    )
+    families = _scrape(app_client)
+    routes = {s.labels.get("route") for s in families["cpkb_http_requests"]}
+    assert route in routes
+    assert not any("default" in r or "nope" in r for r in routes if r)
+
+
+def test_unknown_paths_share_one_label(app_client: Any) -> None:
+    labels = {"method": "GET", "route": "<unmatched>", "status": "404"}
+    before = _value("cpkb_http_requests_total", **labels)
+    for i in range(5):
+        assert app_client.get(f"/no/such/path/{i}").status_code == 404
+    assert _value("cpkb_http_requests_total", **labels) - before == 5
+
+
+def test_points_ingested_counts_stored_points_only(app_client: Any) -> None:
+    app_client.post("/v1/kbs", json={"name": "metrics-kb"})
+    before = _value("cpkb_points_ingested_total", kb="metrics-kb")
+    before_types = _value("cpkb_types_created_total", kb="metrics-kb")
+    points = [make_point(i, key=f"k{i}") for i in range(12)]
+    assert app_client.post("/v1/kbs/metrics-kb/points", json={"points": points}).status_code == 201
+    # the same keys again: nothing new is stored, nothing is counted
+    assert app_client.post("/v1/kbs/metrics-kb/points", json={"points": points}).status_code == 201
+    assert _value("cpkb_points_ingested_total", kb="metrics-kb") - before == 12
+    assert _value("cpkb_types_created_total", kb="metrics-kb") - before_types == 1
+
+
+def test_store_gauges_follow_the_database(app_client: Any) -> None:
+    app_client.post("/v1/kbs", json={"name": "gauged"})
+    other = make_graph("Plan-motion", ("shelf",))
+    points = [make_point(i) for i in range(5)] + [make_point(i, graph=other) for i in range(2)]
+    app_client.post("/v1/kbs/gauged/points", json={"points": points})
+    families = _scrape(app_client)
+    types = {s.labels["kb"]: s.value for s in families["cpkb_active_types"]}
+    stored = {s.labels["kb"]: s.value for s in families["cpkb_points_stored"]}
+    assert types["gauged"] == 2 and stored["gauged"] == 7
+    assert types["default"] == 0
+
+
+def test_fits_are_counted_with_their_duration() -> None:
+    before = _value("cpkb_surrogate_fits_total", outcome="ok")
+    before_failed = _value("cpkb_surrogate_fits_total", outcome="error")
+    before_sum = _value("cpkb_surrogate_fit_duration_seconds_sum")
+    record_fit(0.75, 120)
+    record_fit(1.5, 240)
+    record_fit(3.0, 10, ok=False)
+    assert _value("cpkb_surrogate_fits_total", outcome="ok") - before == 2
+    assert _value("cpkb_surrogate_fits_total", outcome="error") - before_failed == 1
+    assert _value("cpkb_surrogate_fit_duration_seconds_sum") - before_sum == pytest.approx(2.25)
+
+
+def test_every_metric_name_is_prefixed(app_client: Any) -> None:
+    app_client.get("/healthz")
+    names = set(_scrape(app_client))
+    assert names and all(name.startswith("cpkb_") for name in names)
+    assert {
+        "cpkb_http_requests",
+        "cpkb_http_request_duration_seconds",
+        "cpkb_points_ingested",
+        "cpkb_surrogate_fits",
+        "cpkb_surrogate_fit_duration_seconds",
+        "cpkb_suggest_duration_seconds",
+        "cpkb_active_types",
+    } <= names
+
+
+def test_access_log_is_one_json_object_per_request(app_client: Any) -> None:
+    stream = io.StringIO()
+    handler = logging.StreamHandler(stream)
+    handler.setFormatter(JsonFormatter())
+    logger = logging.getLogger("cpkb.access")
+    logger.addHandler(handler)
+    old_level = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        app_client.get("/v1/kbs/default/types")
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old_level)
+    records = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert len(records) == 1
+    record = records[0]
+    assert record["message"] == "request" and record["logger"] == "cpkb.access"
+    assert record["route"] == "/v1/kbs/{kb}/types" and record["path"] == "/v1/kbs/default/types"
+    assert record["status"] == 200 and record["duration_ms"] > 0
+    assert record["level"] == "info" and record["time"].endswith("+00:00")
+
+
+def test_configured_logging_writes_json_lines_with_extras_and_exceptions(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    root = logging.getLogger()
+    handlers, level = list(root.handlers), root.level
+    stream = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", stream)
+    try:
+        configure_json_logging("info")
+        configure_json_logging("info")  # idempotent: still one handler
+        log = logging.getLogger("cpkb.test")
+        log.info("fitted", extra={"type_id": "abc", "seconds": 1.25})
+        try:
+            raise ValueError("boom")
+        except ValueError:
+            log.exception("fit failed")
+    finally:
+        root.handlers[:] = handlers
+        root.setLevel(level)
+    lines = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert [line["message"] for line in lines] == ["fitted", "fit failed"]
+    assert lines[0]["type_id"] == "abc" and lines[0]["seconds"] == 1.25
+    assert "ValueError: boom" in lines[1]["exception"] and lines[1]["level"] == "error"
