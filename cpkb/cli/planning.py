@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from typing import Any
 
 from cpkb.cli import CliError
@@ -65,10 +64,18 @@ def _run(args: argparse.Namespace, **kwargs: Any) -> Any:
         raise CliError(f"knowledge base unreachable: {exc}") from exc
 
 
+def _configured_token() -> str | None:
+    """CPKB_TOKEN, read by the one settings module."""
+    from server.settings import Settings
+
+    configured = Settings().token
+    return configured.get_secret_value() if configured is not None else None
+
+
 def _plan(args: argparse.Namespace) -> int:
     if args.max_rollouts < 1:
         raise CliError("--max-rollouts must be at least 1")
-    token = args.token or os.environ.get("CPKB_TOKEN")
+    token = args.token or _configured_token()
     options = dict(
         task=args.task,
         method=args.method,
