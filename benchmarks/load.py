@@ -41,6 +41,8 @@ from typing import Any
 import httpx
 import numpy as np
 
+from cpkb.embedded import wait_ready
+
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "benchmarks" / "results"
 DEFAULT_PG_ADMIN = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
@@ -355,16 +357,10 @@ def running_server(db_url: str, token: str | None) -> Iterator[str]:
 
 
 def wait_healthy(base: str, proc: subprocess.Popen, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"server exited with status {proc.returncode} before it was up")
-        try:
-            if httpx.get(f"{base}/healthz", timeout=1.0).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
-        time.sleep(0.2)
+    if wait_ready(base, proc, timeout):
+        return
+    if proc.poll() is not None:
+        raise RuntimeError(f"server exited with status {proc.returncode} before it was up")
     raise RuntimeError(f"server not healthy after {timeout:.0f} s")
 
 

@@ -42,7 +42,8 @@ def _tail(path: Path, lines: int = 15) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float) -> bool:
+def wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float) -> bool:
+    """Poll `/healthz` until it answers 200 (True), the process exits or time runs out (False)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if process.poll() is not None:
@@ -101,7 +102,7 @@ def embedded_service(
                     env=child_env,
                 )
             try:
-                ready = _wait_ready(url, process, start_timeout)
+                ready = wait_ready(url, process, start_timeout)
             except BaseException:
                 stop_process(process)
                 raise

@@ -9,11 +9,12 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 
 import httpx
+
+from cpkb.embedded import wait_ready
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -45,16 +46,10 @@ class KillableServer:
             cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
         )
         log.close()
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"server exited ({self.proc.returncode}): {self.log_tail()}")
-            try:
-                if httpx.get(f"{self.url}/healthz", timeout=1.0).status_code == 200:
-                    return
-            except httpx.TransportError:
-                pass
-            time.sleep(0.1)
+        if wait_ready(self.url, self.proc, timeout):
+            return
+        if self.proc.poll() is not None:
+            raise RuntimeError(f"server exited ({self.proc.returncode}): {self.log_tail()}")
         raise RuntimeError(f"server not healthy after {timeout} s: {self.log_tail()}")
 
     def kill(self) -> None:
