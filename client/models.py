@@ -206,10 +206,16 @@ class Constraint(_Strict):
 
 
 class SuggestIn(_Strict):
+    """`lookahead` names space variables that are later decisions: MPF is maximised jointly over
+    them (the answer for the other variables must leave a feasible continuation), their values
+    in `x` are only a hint, and they are not recorded as pending. An `exclude` point may give
+    only some variables: it excludes every point that agrees with it on those."""
+
     space: dict[Label, Domain] = Field(min_length=1, max_length=MAX_DIM)
     fixed: dict[Label, Value] = Field(default_factory=dict)
     constraints: list[Constraint] = Field(default_factory=list, max_length=64)
     exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
+    lookahead: list[Label] = Field(default_factory=list, max_length=MAX_DIM)
     seed: int | None = None
 
 

@@ -5,10 +5,18 @@ Genome: one gene in [0, 1] per continuous dimension, one gene in [0, 1) per cate
 genes are exchanged whole between parents and re-drawn uniformly on mutation, so a choice is always
 exact and never treated as ordinal. A finite space (categoricals only, small) is enumerated instead.
 
-The score NSGA-II maximises is the acquisition plus a small exploration bonus (distance to the
-nearest excluded or pending point) minus a penalty around pending points, so that
-equal-probability regions are explored and concurrent planners are pushed apart. An excluded point
-is never returned.
+Like BoTorch's `optimize_acqf`, the search starts from raw samples (a Latin hypercube, scored in
+one vectorised call) and NSGA-II refines the best of them for a few generations: pymoo costs a few
+milliseconds per generation whatever the population, so generations, not evaluations, set the price
+of a suggestion. The score NSGA-II maximises is the acquisition plus a small exploration bonus
+(distance to the nearest excluded or pending point) minus a penalty around pending points, so that
+concurrent planners are pushed apart. An excluded point is never returned.
+
+With `margin > 0` the answer is not the argmax itself but the candidate farthest from the excluded
+and pending points among those within `margin` of the best acquisition value: for MPF, "as likely
+feasible as the best, as far from the node's other children as possible". A tree search needs its
+children spread (the quasi-random baseline's Voronoi rule) as well as feasible: children piled on
+one maximum fail together on every constraint the knowledge base does not know yet.
 """
 
 from __future__ import annotations
@@ -27,7 +35,8 @@ from scipy.stats import qmc
 
 from client.models import CategoricalDomain
 from surrogate.acquisition import Acquisition
-from surrogate.encoding import Columns, Domain, EncodingError, SpaceEncoder, Value, value_column
+from surrogate.avoid import AvoidSet
+from surrogate.encoding import Columns, Domain, Value, value_column
 
 
 class SpaceExhausted(ValueError):
@@ -40,7 +49,9 @@ class OptimizerConfig:
     cut to what `benchmarks/synthetic_cpbo.py` measured to reach the same acquisition values."""
 
     pop_size: int = 24
-    n_gen: int = 20
+    n_gen: int = 5  # refinement generations after the raw samples (0: raw samples only)
+    raw_samples: int = 256
+    margin: float = 0.0  # > 0: the most spread candidate within `margin` of the best value
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
@@ -52,7 +63,7 @@ class OptimizerConfig:
 
     @staticmethod
     def authors() -> OptimizerConfig:
-        return OptimizerConfig(pop_size=100, n_gen=100)
+        return OptimizerConfig(pop_size=100, n_gen=100, raw_samples=100)
 
 
 @dataclass(frozen=True)
@@ -122,46 +133,39 @@ class _MixedPM(PM):
 
 
 class _Scorer:
-    """Acquisition + exploration bonus - penalty near excluded/pending points, on genes."""
+    """Acquisition + exploration bonus - penalty near pending points, on genes."""
 
     def __init__(
         self,
         acquisition: Acquisition,
         genome: _Genome,
-        encoder: SpaceEncoder,
-        avoid: np.ndarray,
-        n_excluded: int,
+        avoid: AvoidSet,
         config: OptimizerConfig,
         fixed_cols: Columns,
     ) -> None:
         self.acquisition = acquisition
         self.fixed_cols = fixed_cols  # 1-row columns of fixed space variables
         self.genome = genome
-        self.encoder = encoder
-        self.avoid = avoid  # (k, D) encoded excluded, then pending points
-        self.n_excluded = n_excluded
+        self.avoid = avoid
         self.config = config
-        self.norm = np.sqrt(max(encoder.dim, 1))
 
-    def distances(self, z: np.ndarray) -> np.ndarray:
-        """`(n, k)` normalised distances to the points to avoid."""
-        d2 = ((z[:, None, :] - self.avoid[None, :, :]) ** 2).sum(-1)
-        return np.sqrt(d2) / self.norm
+    def spread(self, genes: np.ndarray) -> np.ndarray:
+        """`(n,)` normalised distance to the nearest point to avoid (0 with none)."""
+        return self.avoid.spread(self.avoid.encoder.encode(self.genome.columns(genes)))
 
     def __call__(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cols = self.genome.columns(genes)
         raw = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
         raw = np.broadcast_to(raw, (len(genes),))
-        if len(self.avoid) == 0:
+        if self.avoid.empty:
             return raw, raw
-        d = self.distances(self.encoder.encode(cols))
+        z = self.avoid.encoder.encode(cols)
         cfg = self.config
-        bonus = cfg.explore * np.minimum(d.min(axis=1), 1.0)
-        pending = d[:, self.n_excluded :]
-        if pending.shape[1] == 0:
-            return raw + bonus, raw
-        penalty = cfg.penalty * np.exp(-0.5 * (pending / cfg.radius) ** 2).max(axis=1)
-        return raw + bonus - penalty, raw
+        score = raw + cfg.explore * np.minimum(self.avoid.spread(z), 1.0)
+        if self.avoid.has_pending:
+            near = np.exp(-0.5 * (self.avoid.pending_distances(z) / cfg.radius) ** 2)
+            score = score - cfg.penalty * near.max(axis=1)
+        return score, raw
 
 
 class _Problem(Problem):
@@ -173,12 +177,6 @@ class _Problem(Problem):
         out["F"] = -self.scorer(x)[0]
 
 
-def _validated(
-    space: Mapping[str, Domain], points: Sequence[Mapping[str, Value]], what: str
-) -> Columns:
-    return SpaceEncoder(space).columns(points, where=what)
-
-
 def _split(
     space: Mapping[str, Domain], fixed: Mapping[str, Value]
 ) -> tuple[dict[str, Domain], dict[str, Value]]:
@@ -188,48 +186,6 @@ def _split(
             value_column(f"fixed.{name}", domain, [fixed[name]])
     free = {k: d for k, d in space.items() if k not in fixed}
     return free, {k: v for k, v in fixed.items() if k in space}
-
-
-def _fits(space: Mapping[str, Domain], point: Mapping[str, Value]) -> bool:
-    try:
-        _validated(space, [point], "pending")
-    except EncodingError:
-        return False
-    return True
-
-
-def _avoid_rows(
-    free: Mapping[str, Domain],
-    fixed_in_space: Mapping[str, Value],
-    exclude: Sequence[Mapping[str, Value]],
-    pending: Sequence[Mapping[str, Value]],
-) -> tuple[Columns, Columns]:
-    """Columns (free variables) of the excluded and of the pending points that agree with the
-    fixed values. Bad excluded values raise; pending points that do not fit are ignored."""
-
-    def agrees(point: Mapping[str, Value]) -> bool:
-        return all(point.get(k, v) == v for k, v in fixed_in_space.items())
-
-    excluded = _validated(free, [p for p in exclude if agrees(p)], "exclude")
-    fitting = [p for p in pending if agrees(p) and _fits(free, p)]
-    return excluded, _validated(free, fitting, "pending")
-
-
-def _is_excluded(cand: Columns, excluded: Columns, free: Mapping[str, Domain]) -> np.ndarray:
-    """`(n,)` whether each candidate equals an excluded point (continuous: within 1e-6 of range)."""
-    n = len(next(iter(cand.values())))
-    m = len(next(iter(excluded.values()))) if excluded else 0
-    if m == 0:
-        return np.zeros(n, dtype=bool)
-    same = np.ones((n, m), dtype=bool)
-    for name, domain in free.items():
-        a, b = cand[name], excluded[name]
-        if isinstance(domain, CategoricalDomain):
-            same &= a[:, None] == b[None, :]
-        else:
-            tol = 1e-6 * (np.asarray(domain.high) - np.asarray(domain.low))
-            same &= (np.abs(a[:, None, :] - b[None, :, :]) <= tol).all(-1)
-    return same.any(axis=1)
 
 
 def maximize(
@@ -253,25 +209,33 @@ def maximize(
         fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
         return Suggestion(dict(fixed_in_space), float(np.asarray(acquisition(fixed_cols))[0]))
     genome = _Genome(free)
-    encoder = SpaceEncoder(free)
-    excluded, pending_cols = _avoid_rows(free, fixed_in_space, exclude, pending)
-    avoid = np.vstack([encoder.encode(excluded), encoder.encode(pending_cols)])
+    avoid = AvoidSet(free, fixed_in_space, exclude, pending)
     fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
-    n_excluded = len(next(iter(excluded.values())))
-    scorer = _Scorer(acquisition, genome, encoder, avoid, n_excluded, config, fixed_cols)
+    scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes = _candidates(genome, free, scorer, config, seed)
-    ok = ~_is_excluded(genome.columns(genes), excluded, free)
+    ok = ~avoid.excluded(genome.columns(genes))
     if not ok.any():
         if _finite_size(free) is not None:
             raise SpaceExhausted("every point of the space is excluded")
         genes = np.random.default_rng(seed).random((config.pop_size, genome.n_genes))
-        ok = ~_is_excluded(genome.columns(genes), excluded, free)
-    score, raw = scorer(genes)
-    best = int(np.argmax(np.where(ok, score, -np.inf)))
-    x = encoder.points(genome.columns(genes[best : best + 1]))[0]
+        ok = ~avoid.excluded(genome.columns(genes))
+    best = _select(genes, ok, scorer, config.margin)
+    raw = scorer(genes[best : best + 1])[1]
+    x = avoid.encoder.points(genome.columns(genes[best : best + 1]))[0]
     merged = {**x, **fixed_in_space}
-    return Suggestion({k: merged[k] for k in space}, float(raw[best]))
+    return Suggestion({k: merged[k] for k in space}, float(raw[0]))
+
+
+def _select(genes: np.ndarray, ok: np.ndarray, scorer: _Scorer, margin: float) -> int:
+    """The index of the answer among the allowed (`ok`) candidates: the best score, or with a
+    margin the most spread of those within `margin` of the best acquisition (ties: the best)."""
+    score, raw = scorer(genes)
+    if margin <= 0:
+        return int(np.argmax(np.where(ok, score, -np.inf)))
+    near = ok & (raw >= raw[ok].max() - margin)
+    order = np.lexsort((-score, -np.round(scorer.spread(genes), 9), ~near))
+    return int(order[0])
 
 
 def _finite_size(free: Mapping[str, Domain]) -> int | None:
@@ -292,8 +256,12 @@ def _candidates(
     if size is not None and size <= config.enumerate_limit:
         ks = [len(d.choices) for d in free.values()]  # type: ignore[union-attr]
         grid = np.array(list(itertools.product(*[range(k) for k in ks])), dtype=float)
-        return (grid + 0.5) / np.asarray(ks, dtype=float)
-    return _nsga2(genome, scorer, config, seed)
+        return np.random.default_rng(seed).permutation((grid + 0.5) / np.asarray(ks, float))
+    raw = space_filling_genes(genome.n_genes, max(config.raw_samples, config.pop_size), seed)
+    if config.n_gen <= 0:
+        return raw
+    start = raw[np.argsort(-scorer(raw)[0], kind="stable")[: config.pop_size]]
+    return np.vstack([_nsga2(genome, scorer, config, seed, start), raw])
 
 
 def space_filling_genes(n_genes: int, n: int, seed: int) -> np.ndarray:
@@ -302,8 +270,10 @@ def space_filling_genes(n_genes: int, n: int, seed: int) -> np.ndarray:
     return qmc.LatinHypercube(d=n_genes, seed=seed).random(n)
 
 
-def _nsga2(genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int) -> np.ndarray:
-    start = space_filling_genes(genome.n_genes, config.pop_size, seed)
+def _nsga2(
+    genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int, start: np.ndarray
+) -> np.ndarray:
+    """NSGA-II's final population, started from `start` `(pop_size, n_genes)`."""
     algorithm = NSGA2(
         pop_size=config.pop_size,
         sampling=start,
@@ -313,7 +283,7 @@ def _nsga2(genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int)
     )
     problem = _Problem(scorer)
     result = minimize(problem, algorithm, ("n_gen", config.n_gen), seed=seed, verbose=False)
-    return np.vstack([result.pop.get("X"), start])
+    return result.pop.get("X")
 
 
 def space_filling(
@@ -331,25 +301,20 @@ def space_filling(
     if not free:
         return dict(fixed_in_space)
     genome = _Genome(free)
-    encoder = SpaceEncoder(free)
-    excluded, pending_cols = _avoid_rows(free, fixed_in_space, exclude, pending)
-    avoid = np.vstack([encoder.encode(excluded), encoder.encode(pending_cols)])
+    avoid = AvoidSet(free, fixed_in_space, exclude, pending)
     size = _finite_size(free)
     if size is not None and size <= OptimizerConfig().enumerate_limit:
         ks = [len(d.choices) for d in free.values()]  # type: ignore[union-attr]
         grid = np.array(list(itertools.product(*[range(k) for k in ks])), dtype=float)
         genes = np.random.default_rng(seed).permutation((grid + 0.5) / np.asarray(ks, float))
     else:
-        genes = np.random.default_rng(seed).random((10 * max(encoder.dim, 1), genome.n_genes))
+        dim = avoid.encoder.dim
+        genes = np.random.default_rng(seed).random((10 * max(dim, 1), genome.n_genes))
     cols = genome.columns(genes)
-    ok = ~_is_excluded(cols, excluded, free)
+    ok = ~avoid.excluded(cols)
     if not ok.any():
         raise SpaceExhausted("every point of the space is excluded")
-    if len(avoid):
-        z = encoder.encode(cols)
-        spread = np.sqrt(((z[:, None, :] - avoid[None, :, :]) ** 2).sum(-1)).min(axis=1)
-    else:
-        spread = np.zeros(len(genes))
+    spread = avoid.spread(avoid.encoder.encode(cols))
     best = int(np.argmax(np.where(ok, spread, -np.inf)))
-    merged = {**encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
+    merged = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
     return {k: merged[k] for k in space}

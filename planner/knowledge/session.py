@@ -95,11 +95,14 @@ class KnowledgeSession:
         run: str | None = None,
         worker: str | None = None,
         background: bool = True,
+        lookahead: bool = True,
     ) -> None:
         self.client = client
+        self.lookahead = lookahead
         self.kb = kb
         self.world = world
         self.skeleton = world.skeleton
+        self._domains = {d.var: d.domain for d in self.skeleton.decisions}
         self.run = run or uuid.uuid4().hex[:16]
         self.worker = worker
         self.stats = KnowledgeStats()
@@ -225,12 +228,15 @@ class KnowledgeSession:
     # -- guiding the search -------------------------------------------------------------------
 
     def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
-        """The active types whose decision vertexes are this variable plus earlier ones."""
+        """The active types whose decision vertexes include this variable: with earlier ones
+        (fixed on this path) and, with `lookahead`, later ones (optimised jointly, so that this
+        decision leaves a feasible continuation: a grasp that no placement can follow is
+        avoided at the grasp)."""
         known = {*path, var}
         seen: set[tuple[str, tuple[tuple[str, str], ...]]] = set()
         constraints: list[Constraint] = []
         for activation in self._active.values():
-            if var not in activation.vars or not activation.vars <= known:
+            if var not in activation.vars or not (self.lookahead or activation.vars <= known):
                 continue
             if activation.stored_with > self.poster.done:
                 # A type met in this run exists once its first point is stored: wait for that
@@ -255,11 +261,13 @@ class KnowledgeSession:
     ) -> SuggestOut | None:
         """The MPF suggestion of the service, or None if the service could not answer."""
         bound = {v for c in constraints for v in c.bind.values()} - {var.var}
+        later = sorted(bound - set(path))
         request = SuggestIn(
-            space={var.var: var.domain},
-            fixed={v: path[v] for v in sorted(bound)},
+            space={var.var: var.domain} | {v: self._domains[v] for v in later},
+            fixed={v: path[v] for v in sorted(bound & set(path))},
             constraints=constraints,
             exclude=[{var.var: value} for value in siblings],
+            lookahead=later,
             seed=seed,
         )
         started = time.perf_counter()

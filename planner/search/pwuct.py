@@ -17,7 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from client.models import Value
-from planner.search.samplers.base import SampleContext, Sampler
+from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
     PW_K,
     UCB_C,
@@ -27,12 +27,15 @@ from planner.search.tree import (
     backup,
     check_alternating,
     close,
+    mark_hopeless,
     reward,
     ucb_select,
     widens,
 )
 from planner.world import BindingWorld, TransitionOutcome
 
+HOPELESS_BELOW = 0.3
+"""A proposal less likely than this to be feasible makes its node hopeless (see `Proposal`)."""
 _REWARD = attrgetter("reward")
 _VISITS = attrgetter("visits")
 
@@ -77,8 +80,10 @@ class PWUCT:
         k: float = PW_K,
         c: float = UCB_C,
         observer: SearchObserver | None = None,
+        hopeless_below: float = HOPELESS_BELOW,
     ) -> None:
         check_alternating(world.skeleton)
+        self.hopeless_below = hopeless_below
         self.world = world
         self.sampler = sampler
         self.k = k
@@ -169,8 +174,12 @@ class PWUCT:
             sibling_matrix=node.value_matrix,
         )
         started = time.perf_counter()
-        value = self.sampler.propose(ctx)
+        proposal = self.sampler.propose(ctx)
         self.sample_s += time.perf_counter() - started
+        value = proposal
+        if isinstance(proposal, Proposal):
+            value = proposal.value
+            mark_hopeless(node, proposal.p_feasible < self.hopeless_below)
         if node.n_choices is not None and value in ctx.siblings:
             raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

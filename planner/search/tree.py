@@ -50,6 +50,8 @@ class DecisionNode:
     visits: int = 0
     reward: float = 0.0
     n_closed: int = 0
+    n_hopeless: int = 0  # open children whose next node is hopeless
+    hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     values: list[Value] = field(default_factory=list)  # the children's values, in order
     _matrix: np.ndarray | None = field(default=None, repr=False)
     _filled: int = field(default=0, repr=False)
@@ -98,11 +100,22 @@ def add_child(node: DecisionNode, child: ChildNode) -> None:
     node.values.append(child.value)
 
 
+def mark_hopeless(node: DecisionNode, hopeless: bool) -> None:
+    """Record whether `node`'s latest proposal was hopeless, in the count its parent widens by."""
+    if node.hopeless == hopeless:
+        return
+    node.hopeless = hopeless
+    if node.parent is not None and not node.parent.closed:
+        node.parent.parent.n_hopeless += 1 if hopeless else -1
+
+
 def close(child: ChildNode) -> None:
     """Mark `child` closed and propagate: a node whose last open child closes, with no choice
     left, closes the child that leads to it, and so on up."""
     current: ChildNode | None = child
     while current is not None and not current.closed:
+        if current.next is not None and current.next.hopeless:
+            current.parent.n_hopeless -= 1  # counted once, as closed
         current.closed = True
         parent = current.parent
         parent.n_closed += 1
@@ -110,13 +123,13 @@ def close(child: ChildNode) -> None:
 
 
 def widens(node: DecisionNode, k: float = PW_K) -> bool:
-    """The PW law: a new child when N > k |C|^2, or when every child is closed;
+    """The PW law: a new child when N > k |C|^2, or when every child is closed or hopeless;
     never beyond a categorical decision's number of choices."""
     n_children = len(node.children)
     limit = node.n_choices
     if limit is not None and n_children >= limit:
         return False
-    if node.n_closed == n_children:
+    if node.n_closed + node.n_hopeless >= n_children:
         return True
     return node.visits > k * n_children**2
 

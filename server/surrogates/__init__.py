@@ -24,7 +24,10 @@ def install(app: FastAPI) -> None:
         pending_ttl_s=settings.surrogate_pending_ttl_s,
         prefit_types=settings.surrogate_prefit_types,
         optimizer=OptimizerConfig(
-            pop_size=settings.surrogate_pop_size, n_gen=settings.surrogate_generations
+            pop_size=settings.surrogate_pop_size,
+            n_gen=settings.surrogate_generations,
+            raw_samples=settings.surrogate_raw_samples,
+            margin=settings.surrogate_mpf_margin,
         ),
     )
     engine = SurrogateEngine(app.state.store, config)

@@ -97,8 +97,9 @@ def _answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Va
             continue
         for point in points:
             if all(
-                label in point and var in entry.x and _same(entry.x[var], point[label])
+                label in point and _same(entry.x[var], point[label])
                 for label, var in bind
+                if var in entry.x  # a lookahead suggestion gives only the node's variables
             ):
                 return True
     return False

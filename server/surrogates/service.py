@@ -42,9 +42,18 @@ def _check_binding(i: int, type_id: str, handle: ModelHandle, body: SuggestIn) -
             raise InvalidInput(f"{where}.{label}: variable {var!r} is neither in space nor fixed")
 
 
+def _check_lookahead(body: SuggestIn) -> None:
+    for i, var in enumerate(body.lookahead):
+        if var not in body.space:
+            raise InvalidInput(f"lookahead[{i}]: {var!r} is not a variable of space")
+    if set(body.space) <= set(body.lookahead):
+        raise InvalidInput("lookahead: leaves no variable of space to suggest")
+
+
 def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     """The MPF maximiser over `body.space` for the bound constraints (a space-filling point when
     there are none), away from `exclude` and from suggestions still pending."""
+    _check_lookahead(body)
     terms: list[ConstraintTerm] = []
     fitted: dict[str, int] = {}
     for i, constraint in enumerate(body.constraints):
@@ -88,7 +97,8 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     p_feasible: dict[str, float] = {}
     for term, p in zip(terms, per_term, strict=True):
         p_feasible[term.name] = min(float(p), p_feasible.get(term.name, 1.0))
-    engine.pending.add(kb, x, [(c.type_id, c.bind) for c in body.constraints])
+    proposed = {var: value for var, value in x.items() if var not in body.lookahead}
+    engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
     return SuggestOut(
         x=x,
         mpf=min(p_feasible.values()) if p_feasible else 0.5,

@@ -114,3 +114,22 @@ def test_a_seed_reproduces_the_suggestion_for_a_given_model_state(sqlite_url: st
         assert client.app.state.surrogates.wait_idle(timeout=300)
         body = suggest_body(type_ids, seed=9)
         assert client.post(URL, json=body).json() == client.post(URL, json=body).json()
+
+
+def test_lookahead_picks_a_choice_that_a_feasible_continuation_can_follow(
+    sqlite_url: str,
+) -> None:
+    """Of the untried grasps `top` and `left`, only `left` has a pose clear of box1 after it."""
+    with make_client(sqlite_url) as client:
+        type_ids = post_points(client, 40)
+        assert client.app.state.surrogates.wait_idle(timeout=300)
+        tried = [{"d": d} for d in SPACE["d"]["choices"] if d not in ("top", "left")]
+        for seed in range(4):
+            body = suggest_body(type_ids, exclude=tried, lookahead=["p"], seed=seed)
+            answer = client.post(URL, json=body).json()
+            assert answer["x"]["d"] == "left" and set(answer["x"]) == {"d", "p"}
+        pending = client.app.state.surrogates.pending.for_request("default", frozenset(type_ids))
+        assert pending and all(set(x) == {"d"} for x in pending)
+        for bad in (["q"], ["d", "p"]):
+            answer = client.post(URL, json=suggest_body(type_ids, lookahead=bad))
+            assert answer.status_code == 422 and "lookahead" in answer.text

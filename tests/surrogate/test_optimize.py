@@ -9,7 +9,7 @@ from client.models import CategoricalDomain, ContinuousDomain
 from surrogate.acquisition import MPF, ConstraintTerm, ucb
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_regression
-from surrogate.optimize import SpaceExhausted, maximize, space_filling
+from surrogate.optimize import OptimizerConfig, SpaceExhausted, maximize, space_filling
 
 DIRS = ["front", "right", "top", "back", "left"]
 SPACE = {
@@ -87,6 +87,27 @@ def test_pending_points_push_suggestions_apart(mpf: MPF) -> None:
     gap = np.linalg.norm(np.subtract(first.x["pose"], second.x["pose"]))
     assert second.x["dir"] != first.x["dir"] or gap > 0.1
     assert truly_feasible(second.x)
+
+
+def test_margin_spreads_children_over_the_likely_feasible_region(mpf: MPF) -> None:
+    """Children of one node: the margin rule keeps them feasible but apart, where the plain
+    argmax piles them up next to each other."""
+
+    def children(margin: float) -> list[dict]:
+        config = OptimizerConfig(margin=margin)
+        found: list[dict] = []
+        for seed in range(6):
+            found.append(maximize(mpf, SPACE, exclude=found, seed=seed, config=config).x)
+        return found
+
+    def closest_pair(xs: list[dict]) -> float:
+        z = SpaceEncoder(SPACE).encode_points(xs)
+        d = np.linalg.norm(z[:, None] - z[None], axis=-1) + np.eye(len(xs)) * 9
+        return float(d.min())
+
+    spread, piled = children(0.2), children(0.0)
+    assert sum(map(truly_feasible, spread)) >= 5
+    assert closest_pair(spread) > 2 * closest_pair(piled)
 
 
 def test_space_filling_stays_away_from_excluded_points() -> None:

@@ -30,10 +30,20 @@ class SampleContext:
     sibling_matrix: np.ndarray | None = None  # continuous siblings as an (n, dim) array
 
 
+@dataclass(frozen=True)
+class Proposal:
+    """A value with the knowledge base's probability that it is feasible (its MPF). A node
+    whose best proposal is unlikely to be feasible is *hopeless*: its parent widens as if it
+    were a dead end (the tree still may come back to it, so completeness is kept)."""
+
+    value: Value
+    p_feasible: float
+
+
 class Sampler(Protocol):
     name: str
 
-    def propose(self, ctx: SampleContext) -> Value:
+    def propose(self, ctx: SampleContext) -> Value | Proposal:
         """A value for `ctx.var`, from its domain; never a sibling of a categorical variable."""
         ...
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from client.models import CategoricalDomain, Value
 from planner.knowledge import KnowledgeSession
 from planner.search.samplers import register
-from planner.search.samplers.base import SampleContext
+from planner.search.samplers.base import Proposal, SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
 
@@ -23,7 +23,7 @@ class CpBoSampler:
         self.guided = 0
         self.unguided = 0
 
-    def propose(self, ctx: SampleContext) -> Value:
+    def propose(self, ctx: SampleContext) -> Value | Proposal:
         domain = ctx.var.domain
         if isinstance(domain, CategoricalDomain):
             left = [c for c in domain.choices if c not in ctx.siblings]
@@ -36,7 +36,7 @@ class CpBoSampler:
             value = answer.x.get(ctx.var.var) if answer is not None else None
             if value is not None and _valid(value, ctx):
                 self.guided += 1
-                return value
+                return Proposal(value, answer.mpf)
         self.unguided += 1
         return space_filling(ctx)
 

@@ -77,8 +77,18 @@ def test_a_later_task_activates_the_types_before_any_failure(live_kb):
         assert session.stats.points_activated == shelf[0].n_points
         constraints = session.constraints_at("#pose12", {"#dir1": "front"})
         assert [set(c.bind.values()) for c in constraints] == [{"#dir1", "#pose12"}]
-        assert session.constraints_at("#dir1", {}) == []
+        # Looking ahead, the grasp is chosen jointly with a placement the shelf type allows.
+        ahead = session.constraints_at("#dir1", {})
+        assert [set(c.bind.values()) for c in ahead] == [{"#dir1", "#pose12"}]
+        grasp = world.skeleton.decisions[0]
+        answer = session.suggest(grasp, {}, ["front"], ahead, seed=0)
+        assert answer is not None and set(answer.x) == {"#dir1", "#pose12"}
+        assert answer.x["#dir1"] != "front"
         session.close()
+        paper_rule = KnowledgeSession(client, live_kb.name, world, lookahead=False)
+        paper_rule.prematch()
+        assert paper_rule.constraints_at("#dir1", {}) == []
+        paper_rule.close()
 
 
 def test_run_plan_reports_what_the_knowledge_base_did(live_kb):

@@ -9,12 +9,14 @@ import pytest
 from client.models import CategoricalDomain, ContinuousDomain
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_feasible
+from planner.search.samplers.base import Proposal
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from planner.search.tree import (
     ChildNode,
     DecisionNode,
     backup,
     close,
+    mark_hopeless,
     reward,
     ucb_select,
     widens,
@@ -25,6 +27,11 @@ from planner.world import CheckResult, TransitionOutcome
 CALL = OperatorCall("Inv-kin", ("body", "pose0", "#x"))
 PASS = TransitionOutcome((CheckResult(CALL, True),))
 FAIL = TransitionOutcome((CheckResult(CALL, False),))
+
+
+CATEGORICAL_AB = DecisionVar(
+    "#c", "#c", CategoricalDomain(choices=["a", "b"]), OperatorCall("Sample", (), ("#c",))
+)
 
 
 def node(domain=None) -> DecisionNode:
@@ -67,6 +74,25 @@ def test_pw_widens_at_once_when_every_child_is_a_dead_end():
     n.visits = 3
     assert widens(n)
     assert ucb_select(n) is None
+
+
+def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
+    n = node()
+    dead = add_child(n, [0.1], FAIL)
+    trapped = add_child(n, [0.2])
+    n.visits = 20  # below 13.5 * 2^2
+    assert not widens(n)
+    mark_hopeless(trapped.next, True)
+    assert widens(n) and ucb_select(n) is trapped
+    mark_hopeless(trapped.next, True)  # idempotent
+    assert n.n_hopeless == 1
+    mark_hopeless(trapped.next, False)
+    assert not widens(n) and n.n_hopeless == 0
+    mark_hopeless(trapped.next, True)
+    trapped.next.var = CATEGORICAL_AB
+    add_child(trapped.next, "a", FAIL)
+    add_child(trapped.next, "b", FAIL)  # the trapped subtree closes: counted once, as closed
+    assert trapped.closed and n.n_hopeless == 0 and n.n_closed == 2 and dead.closed
 
 
 def test_a_categorical_decision_stops_at_its_number_of_choices():
@@ -162,3 +188,19 @@ def test_budget_without_stopping_keeps_searching_after_the_first_solution():
     )
     assert result.solved and result.rollouts_spent == 300
     assert result.rollouts < 300 and len(result.solutions) >= 1
+
+
+class HopelessSampler(QuasiRandomSampler):
+    """Quasi-random values, each reported as almost surely infeasible."""
+
+    def propose(self, ctx):
+        return Proposal(super().propose(ctx), 0.01)
+
+
+def test_search_widens_above_nodes_whose_proposals_are_hopeless():
+    def root_children(sampler) -> int:
+        search = PWUCT(analytic_world("deskP"), sampler, seed=0)
+        search.run(12, stop_at_first=False)
+        return len(search.root.children)
+
+    assert root_children(HopelessSampler()) > root_children(QuasiRandomSampler())

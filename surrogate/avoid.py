@@ -1,0 +1,122 @@
+"""The points a suggestion keeps away from: excluded ones (never returned) and pending ones
+(served to some planner, not answered yet: avoided softly).
+
+An excluded (or pending) point may give only some of the free variables: it then excludes (or
+repels) every point that agrees with it on those. A planner that looks ahead asks for a node's
+variable jointly with the later decisions its constraints involve, and excludes the node's
+existing children by the node's variable alone. Distances to such a point are measured on its
+variables only, so "far from the existing children" means far in the node's own variable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from client.models import CategoricalDomain
+from surrogate.encoding import Columns, Domain, EncodingError, SpaceEncoder, Value
+
+
+@dataclass(frozen=True)
+class _Group:
+    """Excluded points that give the same variables: their columns and encoded rows."""
+
+    names: tuple[str, ...]
+    cols: Columns
+    z: np.ndarray  # (k, d) encoded on the group's own variables
+    mask: np.ndarray  # (d,) columns of the full encoding that the group's variables occupy
+
+
+def _agrees(point: Mapping[str, Value], fixed: Mapping[str, Value]) -> bool:
+    return all(point.get(k, v) == v for k, v in fixed.items())
+
+
+class AvoidSet:
+    """Excluded and pending points of one request, on the free variables of `free`."""
+
+    def __init__(
+        self,
+        free: Mapping[str, Domain],
+        fixed: Mapping[str, Value],
+        exclude: Sequence[Mapping[str, Value]],
+        pending: Sequence[Mapping[str, Value]],
+    ) -> None:
+        self.free = dict(free)
+        self.encoder = SpaceEncoder(free)
+        self.blocks = {v.name: np.arange(v.start, v.start + v.width) for v in self.encoder.vars}
+        for i, point in enumerate(exclude):
+            if not any(name in point for name in self.free):
+                raise EncodingError(f"exclude[{i}]", "gives none of the free variables")
+        self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
+        fitting = [p for p in pending if _agrees(p, fixed) and self._fits(p)]
+        self.pending_groups = self._groups(fitting, "pending")
+
+    def _groups(self, points: Sequence[Mapping[str, Value]], where: str) -> list[_Group]:
+        by_names: dict[tuple[str, ...], list[Mapping[str, Value]]] = {}
+        for point in points:
+            names = tuple(name for name in self.free if name in point)
+            by_names.setdefault(names, []).append(point)
+        groups = []
+        for names, members in by_names.items():
+            sub = SpaceEncoder({name: self.free[name] for name in names})
+            cols = sub.columns(members, where=where)
+            mask = np.concatenate([self.blocks[name] for name in names])
+            groups.append(_Group(names, cols, sub.encode(cols), mask))
+        return groups
+
+    def _fits(self, point: Mapping[str, Value]) -> bool:
+        """A pending point is used if it gives some free variable, each with a valid value."""
+        names = [name for name in self.free if name in point]
+        if not names:
+            return False
+        try:
+            SpaceEncoder({name: self.free[name] for name in names}).columns([point])
+        except EncodingError:
+            return False
+        return True
+
+    @property
+    def empty(self) -> bool:
+        return not self.groups and not self.pending_groups
+
+    @property
+    def has_pending(self) -> bool:
+        return bool(self.pending_groups)
+
+    def excluded(self, cols: Columns) -> np.ndarray:
+        """`(n,)` whether each candidate agrees with an excluded point (continuous values:
+        within 1e-6 of the range)."""
+        n = len(next(iter(cols.values())))
+        out = np.zeros(n, dtype=bool)
+        for group in self.groups:
+            same = np.ones((n, len(group.z)), dtype=bool)
+            for name in group.names:
+                a, b, domain = cols[name], group.cols[name], self.free[name]
+                if isinstance(domain, CategoricalDomain):
+                    same &= a[:, None] == b[None, :]
+                else:
+                    tol = 1e-6 * (np.asarray(domain.high) - np.asarray(domain.low))
+                    same &= (np.abs(a[:, None, :] - b[None, :, :]) <= tol).all(-1)
+            out |= same.any(axis=1)
+        return out
+
+    def spread(self, z: np.ndarray) -> np.ndarray:
+        """`(n,)` normalised distance from each encoded candidate `(n, D)` to the nearest point
+        to avoid, each group measured on its own variables (0 with none)."""
+        nearest = np.full(len(z), np.inf)
+        for group in (*self.groups, *self.pending_groups):
+            nearest = np.minimum(nearest, _distances(z[:, group.mask], group.z).min(axis=1))
+        return np.where(np.isfinite(nearest), nearest, 0.0)
+
+    def pending_distances(self, z: np.ndarray) -> np.ndarray:
+        """`(n, k)` normalised distances to the pending points."""
+        parts = [_distances(z[:, g.mask], g.z) for g in self.pending_groups]
+        return np.hstack(parts) if parts else np.zeros((len(z), 0))
+
+
+def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """`(n, k)` Euclidean distances divided by sqrt(dim), so that 1 spans the unit cube."""
+    d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)
+    return np.sqrt(np.maximum(d2, 0.0)) / np.sqrt(max(a.shape[1], 1))
