@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
+
+FIT_WAIT_S = 120.0
+SETTLED = frozenset({"ready", "prior", "error"})
 
 
 @dataclass(frozen=True)
@@ -32,3 +36,20 @@ class ServiceKbs:
             for name in names:
                 client.delete_kb(name)
         return len(names)
+
+    def wait_fitted(self, name: str, timeout: float = FIT_WAIT_S) -> float:
+        """Block until every type of `name` has a surrogate fitted on all its points, the state a
+        persistent knowledge base reaches between two tasks; returns the seconds waited (at most
+        `timeout`: a target never waits longer than that for its predecessors' fits)."""
+        started = time.perf_counter()
+        with self._client() as client:
+            while time.perf_counter() - started < timeout:
+                if all(_settled(client.get_type(name, t.type_id)) for t in client.list_types(name)):
+                    break
+                time.sleep(0.2)
+        return time.perf_counter() - started
+
+
+def _settled(detail) -> bool:  # a TypeDetail; the client module is imported lazily
+    state = detail.surrogate
+    return state is not None and state.status in SETTLED and state.n_fitted == detail.n_points

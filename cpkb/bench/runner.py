@@ -43,6 +43,8 @@ class KbService(Protocol):
 
     def delete_prefix(self, prefix: str) -> int: ...
 
+    def wait_fitted(self, name: str) -> float: ...
+
 
 @dataclass(frozen=True)
 class Job:
@@ -143,6 +145,9 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
                 }
                 | {"task": task}
             )
+        fit_wait_s = 0.0
+        if predecessors and job.kb_service is not None:
+            fit_wait_s = job.kb_service.wait_fitted(job.kb_name)
         record = _call(job, s.task, s.sampler, job.max_rollouts)
         record.pop("bindings_detail", None)
         record.update(
@@ -153,6 +158,7 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             max_rollouts=job.max_rollouts,
             predecessors=predecessors,
             predecessor_wall_s=sum(float(p["wall_s"] or 0.0) for p in predecessors),
+            fit_wait_s=fit_wait_s,
             scenario_wall_s=time.perf_counter() - started,
             worker_pid=os.getpid(),
         )

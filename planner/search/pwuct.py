@@ -34,8 +34,11 @@ from planner.search.tree import (
 )
 from planner.world import BindingWorld, TransitionOutcome
 
-HOPELESS_BELOW = 0.3
-"""A proposal less likely than this to be feasible makes its node hopeless (see `Proposal`)."""
+HOPELESS_RATIO = 0.6
+"""A node is hopeless (see `Proposal`) while its best proposal is less likely to be feasible than
+this fraction of its first one: the knowledge base has since learned that little here works. The
+threshold is relative because a type's base rate sets the scale (a well-fitted type with few
+feasible points never predicts much above its base rate anywhere)."""
 _REWARD = attrgetter("reward")
 _VISITS = attrgetter("visits")
 
@@ -80,10 +83,10 @@ class PWUCT:
         k: float = PW_K,
         c: float = UCB_C,
         observer: SearchObserver | None = None,
-        hopeless_below: float = HOPELESS_BELOW,
+        hopeless_ratio: float = HOPELESS_RATIO,
     ) -> None:
         check_alternating(world.skeleton)
-        self.hopeless_below = hopeless_below
+        self.hopeless_ratio = hopeless_ratio
         self.world = world
         self.sampler = sampler
         self.k = k
@@ -179,7 +182,10 @@ class PWUCT:
         value = proposal
         if isinstance(proposal, Proposal):
             value = proposal.value
-            mark_hopeless(node, proposal.p_feasible < self.hopeless_below)
+            if node.first_p_feasible is None:
+                node.first_p_feasible = proposal.p_feasible
+            limit = self.hopeless_ratio * node.first_p_feasible
+            mark_hopeless(node, proposal.p_feasible < limit)
         if node.n_choices is not None and value in ctx.siblings:
             raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

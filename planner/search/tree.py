@@ -52,6 +52,7 @@ class DecisionNode:
     n_closed: int = 0
     n_hopeless: int = 0  # open children whose next node is hopeless
     hopeless: bool = False  # the latest proposal here was unlikely to be feasible
+    first_p_feasible: float | None = None  # the knowledge base's view when the search came here
     values: list[Value] = field(default_factory=list)  # the children's values, in order
     _matrix: np.ndarray | None = field(default=None, repr=False)
     _filled: int = field(default=0, repr=False)

@@ -190,11 +190,15 @@ def test_budget_without_stopping_keeps_searching_after_the_first_solution():
     assert result.rollouts < 300 and len(result.solutions) >= 1
 
 
-class HopelessSampler(QuasiRandomSampler):
-    """Quasi-random values, each reported as almost surely infeasible."""
+class FadingSampler(QuasiRandomSampler):
+    """Quasi-random values, each reported as less likely to be feasible than the one before."""
+
+    def __init__(self) -> None:
+        self.p = 0.5
 
     def propose(self, ctx):
-        return Proposal(super().propose(ctx), 0.01)
+        self.p *= 0.5
+        return Proposal(super().propose(ctx), self.p)
 
 
 def test_search_widens_above_nodes_whose_proposals_are_hopeless():
@@ -203,4 +207,4 @@ def test_search_widens_above_nodes_whose_proposals_are_hopeless():
         search.run(12, stop_at_first=False)
         return len(search.root.children)
 
-    assert root_children(HopelessSampler()) > root_children(QuasiRandomSampler())
+    assert root_children(FadingSampler()) > root_children(QuasiRandomSampler())
