@@ -13,10 +13,11 @@ of a suggestion. The score NSGA-II maximises is the acquisition plus a small exp
 concurrent planners are pushed apart. An excluded point is never returned.
 
 With `margin > 0` the answer is not the argmax itself but the candidate farthest from the excluded
-and pending points among those within `margin` of the best acquisition value: for MPF, "as likely
-feasible as the best, as far from the node's other children as possible". A tree search needs its
-children spread (the quasi-random baseline's Voronoi rule) as well as feasible: children piled on
-one maximum fail together on every constraint the knowledge base does not know yet.
+and pending points among those within `margin` (a fraction) of the best acquisition value: for
+MPF, "about as likely feasible as the best, as far from the node's other children as possible".
+A tree search needs its children spread (the quasi-random baseline's Voronoi rule) as well as
+feasible: children piled on one maximum fail together on every constraint the knowledge base
+does not know yet.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ class OptimizerConfig:
     pop_size: int = 24
     n_gen: int = 5  # refinement generations after the raw samples (0: raw samples only)
     raw_samples: int = 256
-    margin: float = 0.0  # > 0: the most spread candidate within `margin` of the best value
+    margin: float = 0.0  # > 0: the most spread candidate within this fraction of the best value
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
@@ -229,11 +230,13 @@ def maximize(
 
 def _select(genes: np.ndarray, ok: np.ndarray, scorer: _Scorer, margin: float) -> int:
     """The index of the answer among the allowed (`ok`) candidates: the best score, or with a
-    margin the most spread of those within `margin` of the best acquisition (ties: the best)."""
+    margin the most spread of those within `margin * |best|` of the best acquisition (ties:
+    the best score)."""
     score, raw = scorer(genes)
     if margin <= 0:
         return int(np.argmax(np.where(ok, score, -np.inf)))
-    near = ok & (raw >= raw[ok].max() - margin)
+    best = raw[ok].max()
+    near = ok & (raw >= best - margin * abs(best))
     order = np.lexsort((-score, -np.round(scorer.spread(genes), 9), ~near))
     return int(order[0])
 

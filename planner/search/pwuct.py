@@ -39,6 +39,9 @@ HOPELESS_RATIO = 0.6
 this fraction of its first one: the knowledge base has since learned that little here works. The
 threshold is relative because a type's base rate sets the scale (a well-fitted type with few
 feasible points never predicts much above its base rate anywhere)."""
+HOPELESS_MIN_CHILDREN = 8
+"""Only a node with this many children can be hopeless: a refit that lowers every prediction
+at once must not let every parent widen at every visit."""
 _REWARD = attrgetter("reward")
 _VISITS = attrgetter("visits")
 
@@ -185,7 +188,8 @@ class PWUCT:
             if node.first_p_feasible is None:
                 node.first_p_feasible = proposal.p_feasible
             limit = self.hopeless_ratio * node.first_p_feasible
-            mark_hopeless(node, proposal.p_feasible < limit)
+            tried = len(node.children) >= HOPELESS_MIN_CHILDREN
+            mark_hopeless(node, tried and proposal.p_feasible < limit)
         if node.n_choices is not None and value in ctx.siblings:
             raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}
