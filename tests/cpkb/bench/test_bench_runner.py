@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -77,7 +78,8 @@ def test_pool_runs_every_scenario_once_with_predecessors_first(tmp_path: Path) -
     assert len(regrasp_target) == 6  # cp-bo and cp-bo-transfer, three seeds each
     predecessor_calls = [c for c in calls if c["max_rollouts"] == 30]
     assert [c["task"] for c in predecessor_calls].count("deskP") == 6
-    assert len({c["pid"] for c in calls}) == 2
+    pids = {c["pid"] for c in calls}  # worker processes, at most the pool's two (a loaded
+    assert 1 <= len(pids) <= 2 and os.getpid() not in pids  # machine may start one late)
 
 
 def test_rerun_skips_finished_runs_and_redoes_a_line_cut_short(tmp_path: Path) -> None:
