@@ -260,8 +260,9 @@ def fit_classifier(
         inducing = torch.as_tensor(_kmeans_centres(zb, m, seed))
     model = _SVGP(inducing.double()).double()
     likelihood = gpytorch.likelihoods.BernoulliLikelihood().double()
+    reused = state is not None and state["m"] == m
     if state is not None:
-        if state["m"] == m:
+        if reused:
             model.load_state_dict(state["model"])
         else:
             for name in ("mean_module", "covar_module"):
@@ -278,7 +279,7 @@ def fit_classifier(
     iters = _train(
         lambda: -elbo(model(tx), ty),
         [*model.parameters(), *likelihood.parameters()],
-        max_iters if state is None else max_iters // 3,
+        max_iters // 3 if reused else max_iters,  # a new inducing set starts its posterior anew
         lr,
     )
     predictor = _vgp_predictor(model)
