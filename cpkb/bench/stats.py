@@ -33,6 +33,8 @@ class CellSummary:
     rollouts_sd: float
     rollouts_median: float
     reduction_pct: float | None
+    reduction_ci: tuple[float, float] | None  # bootstrap 95% interval of reduction_pct
+    median_reduction_pct: float | None
     p_value: float | None
     wall_mean_s: float
     wall_median_s: float
@@ -61,6 +63,21 @@ def _reduction(mean: float, baseline_mean: float | None) -> float | None:
     if baseline_mean is None or baseline_mean <= 0:
         return None
     return 100.0 * (baseline_mean - mean) / baseline_mean
+
+
+BOOTSTRAP_RESAMPLES = 2000
+
+
+def _reduction_ci(sample: np.ndarray, baseline: np.ndarray) -> tuple[float, float] | None:
+    """A percentile bootstrap (both cells resampled, seeded) of the mean reduction: rollout
+    counts are heavy-tailed, so the point estimate alone says little at n = 100."""
+    if len(sample) < 2 or len(baseline) < 2:
+        return None
+    rng = np.random.default_rng(0)
+    s = rng.choice(sample, (BOOTSTRAP_RESAMPLES, len(sample))).mean(axis=1)
+    b = rng.choice(baseline, (BOOTSTRAP_RESAMPLES, len(baseline))).mean(axis=1)
+    low, high = np.percentile(100.0 * (b - s) / b, [2.5, 97.5])
+    return float(low), float(high)
 
 
 def rollouts_metric(record: Mapping[str, Any]) -> float:
@@ -100,6 +117,10 @@ def summarize(
                     rollouts_sd=float(roll.std(ddof=1)) if len(roll) > 1 else 0.0,
                     rollouts_median=float(np.median(roll)),
                     reduction_pct=_reduction(roll.mean(), base_roll.mean()) if vs_base else None,
+                    reduction_ci=_reduction_ci(roll, base_roll) if vs_base else None,
+                    median_reduction_pct=_reduction(float(np.median(roll)), np.median(base_roll))
+                    if vs_base
+                    else None,
                     p_value=_p_value(roll, base_roll) if vs_base else None,
                     wall_mean_s=float(wall.mean()),
                     wall_median_s=float(np.median(wall)),
@@ -120,6 +141,10 @@ def _fmt(value: float | None, spec: str, suffix: str = "") -> str:
     return "-" if value is None else f"{value:{spec}}{suffix}"
 
 
+def _fmt_ci(ci: tuple[float, float] | None) -> str:
+    return "-" if ci is None else f"[{ci[0]:.0f}%, {ci[1]:.0f}%]"
+
+
 def _fmt_p(p: float | None) -> str:
     if p is None:
         return "-"
@@ -134,6 +159,8 @@ HEADERS = (
     "rollouts mean ± sd",
     "median",
     "reduction vs QR",
+    "95% CI",
+    "median reduction",
     "paper",
     "p (MWU)",
     "wall mean",
@@ -155,6 +182,8 @@ def table_rows(rows: Sequence[CellSummary]) -> list[list[str]]:
             f"{r.rollouts_mean:.1f} ± {r.rollouts_sd:.1f}",
             f"{r.rollouts_median:g}",
             _fmt(r.reduction_pct, ".1f", "%"),
+            _fmt_ci(r.reduction_ci),
+            _fmt(r.median_reduction_pct, ".1f", "%"),
             _fmt(r.paper_reduction_pct, ".2f", "%"),
             _fmt_p(r.p_value),
             f"{r.wall_mean_s:.2f} s",

@@ -46,8 +46,14 @@ def test_cells_give_mean_sd_median_solved_reduction_and_p_value() -> None:
     assert tr.wall_reduction_pct == pytest.approx(tr.reduction_pct)
     assert tr.p_value == pytest.approx(mannwhitneyu(TRANSFER, QR).pvalue)
     assert tr.paper_reduction_pct == 71.69
+    assert tr.median_reduction_pct == pytest.approx(100 * (30 - 3) / 30)
+    # The quasi-random mean rests on one 2000-rollout run: resamples without it reduce far less.
+    low, high = tr.reduction_ci
+    assert 0 < low < 90 < tr.reduction_pct <= high < 100
+    assert qr.reduction_ci is None and qr.median_reduction_pct is None
     table = markdown_table(rows)
-    assert "| desk | cp-bo-transfer | 5 | 100% | 3.0 ± 1.6 | 3 | 99.3% | 71.69% |" in table
+    assert "| desk | cp-bo-transfer | 5 | 100% | 3.0 ± 1.6 | 3 | 99.3% | [" in table
+    assert "| 90.0% | 71.69% |" in table
 
 
 def test_cells_without_a_baseline_have_no_reduction_and_unknown_cells_come_last() -> None:
