@@ -13,6 +13,7 @@ import hashlib
 import multiprocessing
 import os
 import re
+import threading
 import time
 import traceback
 import uuid
@@ -178,9 +179,18 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
 
 
 def _init_worker() -> None:
-    """One BLAS/torch thread per worker: the pool, not the libraries, uses the cores."""
+    """One BLAS/torch thread per worker: the pool, not the libraries, uses the cores. A worker
+    also leaves when the bench process is gone (killed rather than interrupted, it cannot
+    terminate its pool, and an orphaned worker would keep its run going for nothing)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
+    threading.Thread(target=_leave_with, args=(os.getppid(),), daemon=True).start()
+
+
+def _leave_with(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
 
 
 class Progress(Protocol):

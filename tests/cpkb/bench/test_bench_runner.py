@@ -5,6 +5,9 @@ from __future__ import annotations
 import functools
 import json
 import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -144,3 +147,48 @@ def test_a_failing_run_is_reported_and_retried(tmp_path: Path) -> None:
         scenarios, out, functools.partial(toy_run, log_path=str(log)), workers=1, max_rollouts=100
     )
     assert (fixed.skipped, fixed.finished) == (2, 1)
+
+
+def test_workers_leave_when_the_bench_process_is_killed(tmp_path: Path) -> None:
+    """SIGKILL gives the bench no chance to stop its pool: the workers notice and leave."""
+    log = tmp_path / "calls.jsonl"
+    script = (
+        "import functools, sys\n"
+        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+        "from bench_toy_planner import toy_run\n"
+        "from cpkb.bench.runner import run_bench\n"
+        "from cpkb.bench.scenarios import expand\n"
+        "if __name__ == '__main__':\n"
+        f"    run = functools.partial(toy_run, log_path={str(log)!r}, sleep_s=60.0)\n"
+        f"    run_bench(expand(['desk'], ['cp-bo'], range(4)), {str(tmp_path / 'out')!r}, run,\n"
+        "              workers=2, max_rollouts=10)\n"
+    )
+    bench = subprocess.Popen([sys.executable, "-c", script], cwd=Path(__file__).parents[3])
+    try:
+        deadline = time.monotonic() + 120
+        while len(_calls(log)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        pids = {c["pid"] for c in _calls(log)}
+        assert len(pids) == 2
+    finally:
+        bench.kill()
+        bench.wait()
+    deadline = time.monotonic() + 10
+    while any(_alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(_alive(pid) for pid in pids)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}").exists() and "Z" not in _state(pid)
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2]
+    except (OSError, IndexError):
+        return "Z"
