@@ -150,23 +150,26 @@ class _Scorer:
         self.avoid = avoid
         self.config = config
 
-    def spread(self, genes: np.ndarray) -> np.ndarray:
-        """`(n,)` normalised distance to the nearest point to avoid (0 with none)."""
-        return self.avoid.spread(self.avoid.encoder.encode(self.genome.columns(genes)))
-
-    def __call__(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`(n,)` each: the score, the acquisition alone, and the normalised distance to the
+        nearest point to avoid (0 with none)."""
         cols = self.genome.columns(genes)
         raw = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
         raw = np.broadcast_to(raw, (len(genes),))
         if self.avoid.empty:
-            return raw, raw
+            return raw, raw, np.zeros(len(genes))
         z = self.avoid.encoder.encode(cols)
         cfg = self.config
-        score = raw + cfg.explore * np.minimum(self.avoid.spread(z), 1.0)
+        spread = self.avoid.spread(z)
+        score = raw + cfg.explore * np.minimum(spread, 1.0)
         if self.avoid.has_pending:
             near = np.exp(-0.5 * (self.avoid.pending_distances(z) / cfg.radius) ** 2)
             score = score - cfg.penalty * near.max(axis=1)
-        return score, raw
+        return score, raw, spread
+
+    def __call__(self, genes: np.ndarray) -> np.ndarray:
+        """`(n,)` the score NSGA-II maximises."""
+        return self.evaluate(genes)[0]
 
 
 class _Problem(Problem):
@@ -175,7 +178,7 @@ class _Problem(Problem):
         self.scorer = scorer
 
     def _evaluate(self, x, out, *args, **kwargs):  # type: ignore[no-untyped-def]
-        out["F"] = -self.scorer(x)[0]
+        out["F"] = -self.scorer(x)
 
 
 def _split(
@@ -221,23 +224,24 @@ def maximize(
             raise SpaceExhausted("every point of the space is excluded")
         genes = np.random.default_rng(seed).random((config.pop_size, genome.n_genes))
         ok = ~avoid.excluded(genome.columns(genes))
-    best = _select(genes, ok, scorer, config.margin)
-    raw = scorer(genes[best : best + 1])[1]
+    score, raw, spread = scorer.evaluate(genes)
+    best = _select(ok, score, raw, spread, config.margin)
     x = avoid.encoder.points(genome.columns(genes[best : best + 1]))[0]
     merged = {**x, **fixed_in_space}
-    return Suggestion({k: merged[k] for k in space}, float(raw[0]))
+    return Suggestion({k: merged[k] for k in space}, float(raw[best]))
 
 
-def _select(genes: np.ndarray, ok: np.ndarray, scorer: _Scorer, margin: float) -> int:
+def _select(
+    ok: np.ndarray, score: np.ndarray, raw: np.ndarray, spread: np.ndarray, margin: float
+) -> int:
     """The index of the answer among the allowed (`ok`) candidates: the best score, or with a
     margin the most spread of those within `margin * |best|` of the best acquisition (ties:
     the best score)."""
-    score, raw = scorer(genes)
     if margin <= 0:
         return int(np.argmax(np.where(ok, score, -np.inf)))
     best = raw[ok].max()
     near = ok & (raw >= best - margin * abs(best))
-    order = np.lexsort((-score, -np.round(scorer.spread(genes), 9), ~near))
+    order = np.lexsort((-score, -np.round(spread, 9), ~near))
     return int(order[0])
 
 
@@ -257,14 +261,20 @@ def _candidates(
     """All points of a small finite space, else NSGA-II's final population plus its start."""
     size = _finite_size(free)
     if size is not None and size <= config.enumerate_limit:
-        ks = [len(d.choices) for d in free.values()]  # type: ignore[union-attr]
-        grid = np.array(list(itertools.product(*[range(k) for k in ks])), dtype=float)
-        return np.random.default_rng(seed).permutation((grid + 0.5) / np.asarray(ks, float))
+        return _grid_genes(free, seed)
     raw = space_filling_genes(genome.n_genes, max(config.raw_samples, config.pop_size), seed)
     if config.n_gen <= 0:
         return raw
-    start = raw[np.argsort(-scorer(raw)[0], kind="stable")[: config.pop_size]]
+    start = raw[np.argsort(-scorer(raw), kind="stable")[: config.pop_size]]
     return np.vstack([_nsga2(genome, scorer, config, seed, start), raw])
+
+
+def _grid_genes(free: Mapping[str, Domain], seed: int) -> np.ndarray:
+    """Every point of a finite (categorical) space as genes, in a seeded order, so that ties
+    do not always go to the first choice."""
+    ks = [len(d.choices) for d in free.values()]  # type: ignore[union-attr]
+    grid = np.array(list(itertools.product(*[range(k) for k in ks])), dtype=float)
+    return np.random.default_rng(seed).permutation((grid + 0.5) / np.asarray(ks, float))
 
 
 def space_filling_genes(n_genes: int, n: int, seed: int) -> np.ndarray:
@@ -307,9 +317,7 @@ def space_filling(
     avoid = AvoidSet(free, fixed_in_space, exclude, pending)
     size = _finite_size(free)
     if size is not None and size <= OptimizerConfig().enumerate_limit:
-        ks = [len(d.choices) for d in free.values()]  # type: ignore[union-attr]
-        grid = np.array(list(itertools.product(*[range(k) for k in ks])), dtype=float)
-        genes = np.random.default_rng(seed).permutation((grid + 0.5) / np.asarray(ks, float))
+        genes = _grid_genes(free, seed)
     else:
         dim = avoid.encoder.dim
         genes = np.random.default_rng(seed).random((10 * max(dim, 1), genome.n_genes))

@@ -1,9 +1,10 @@
 """CP-BO: node expansion by the knowledge base's MPF suggestion.
 
-At a decision node, the types active at this node (their decision vertexes are this variable
-and earlier decisions of the path) constrain the suggestion, with the earlier decisions fixed
-and the siblings excluded. Where no type is active, or the service cannot answer, the node
-expands like the quasi-random baseline.
+At a decision node, the active types whose decision vertexes include this variable constrain the
+suggestion: earlier decisions of the path are fixed, later ones are optimised jointly (the
+session's lookahead), and the siblings are excluded. The answer's MPF goes to the tree with the
+value (a `Proposal`), so a node the knowledge base has given up on lets its parent widen. Where
+no type is active, or the service cannot answer, the node expands like the quasi-random baseline.
 """
 
 from __future__ import annotations
