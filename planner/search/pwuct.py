@@ -19,6 +19,7 @@ import numpy as np
 from client.models import Value
 from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
+    HOPELESS_RATIO,
     PW_K,
     UCB_C,
     ChildNode,
@@ -27,21 +28,13 @@ from planner.search.tree import (
     backup,
     check_alternating,
     close,
-    mark_hopeless,
+    note_proposal,
     reward,
     ucb_select,
     widens,
 )
 from planner.world import BindingWorld, TransitionOutcome
 
-HOPELESS_RATIO = 0.6
-"""A node is hopeless (see `Proposal`) while its best proposal is less likely to be feasible than
-this fraction of its first one: the knowledge base has since learned that little here works. The
-threshold is relative because a type's base rate sets the scale (a well-fitted type with few
-feasible points never predicts much above its base rate anywhere)."""
-HOPELESS_MIN_CHILDREN = 8
-"""Only a node with this many children can be hopeless: a refit that lowers every prediction
-at once must not let every parent widen at every visit."""
 _REWARD = attrgetter("reward")
 _VISITS = attrgetter("visits")
 
@@ -185,11 +178,7 @@ class PWUCT:
         value = proposal
         if isinstance(proposal, Proposal):
             value = proposal.value
-            if node.first_p_feasible is None:
-                node.first_p_feasible = proposal.p_feasible
-            limit = self.hopeless_ratio * node.first_p_feasible
-            tried = len(node.children) >= HOPELESS_MIN_CHILDREN
-            mark_hopeless(node, tried and proposal.p_feasible < limit)
+            note_proposal(node, proposal.p_feasible, self.hopeless_ratio)
         if node.n_choices is not None and value in ctx.siblings:
             raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

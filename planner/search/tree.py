@@ -20,6 +20,14 @@ from planner.world import TransitionOutcome
 
 PW_K = 13.5
 UCB_C = 0.1
+HOPELESS_RATIO = 0.6
+"""A node is hopeless (see `samplers.base.Proposal`) while its best proposal is less likely to be
+feasible than this fraction of its first one: the knowledge base has since learned that little
+here works. The threshold is relative because a type's base rate sets the scale (a well-fitted
+type with few feasible points never predicts much above its base rate anywhere)."""
+HOPELESS_MIN_CHILDREN = 8
+"""Only a node with this many children can be hopeless: a refit that lowers every prediction
+at once must not let every parent widen at every visit."""
 
 
 @dataclass(eq=False)
@@ -108,6 +116,15 @@ def mark_hopeless(node: DecisionNode, hopeless: bool) -> None:
     node.hopeless = hopeless
     if node.parent is not None and not node.parent.closed:
         node.parent.parent.n_hopeless += 1 if hopeless else -1
+
+
+def note_proposal(node: DecisionNode, p_feasible: float, ratio: float = HOPELESS_RATIO) -> None:
+    """Update `node`'s hopeless flag from the knowledge base's P(feasible) of its latest proposal,
+    measured against the first one made at this node."""
+    if node.first_p_feasible is None:
+        node.first_p_feasible = p_feasible
+    tried = len(node.children) >= HOPELESS_MIN_CHILDREN
+    mark_hopeless(node, tried and p_feasible < ratio * node.first_p_feasible)
 
 
 def close(child: ChildNode) -> None:
