@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 MAX_LABEL = 128
 MAX_CHOICES = 64
 MAX_DIM = 32
+MAX_BATCH = 32  # points in one suggest answer
 MAX_NODES = 64
 MAX_EDGES = 256
 MAX_POINTS_PER_POST = 1000
@@ -209,7 +210,11 @@ class SuggestIn(_Strict):
     """`lookahead` names space variables that are later decisions: MPF is maximised jointly over
     them (the answer for the other variables must leave a feasible continuation), their values
     in `x` are only a hint, and they are not recorded as pending. An `exclude` point may give
-    only some variables: it excludes every point that agrees with it on those."""
+    only some variables: it excludes every point that agrees with it on those. A `probe` is a
+    look at the best point, not a proposal: nothing is recorded as pending. With `n > 1` the
+    answer's `batch` holds up to `n` points (the first is `x`), each the best away from those
+    before it on the non-lookahead variables: what `n` successive suggestions at one node would
+    be if the model did not change in between, for the price of one."""
 
     space: dict[Label, Domain] = Field(min_length=1, max_length=MAX_DIM)
     fixed: dict[Label, Value] = Field(default_factory=dict)
@@ -217,6 +222,14 @@ class SuggestIn(_Strict):
     exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
     lookahead: list[Label] = Field(default_factory=list, max_length=MAX_DIM)
     seed: int | None = None
+    probe: bool = False
+    n: int = Field(1, ge=1, le=MAX_BATCH)
+
+
+class SuggestedPoint(BaseModel):
+    x: dict[str, Value]
+    mpf: float
+    p_feasible: dict[str, float]
 
 
 class SuggestOut(BaseModel):
@@ -225,6 +238,7 @@ class SuggestOut(BaseModel):
     x: dict[str, Value]
     mpf: float
     p_feasible: dict[str, float]
+    batch: list[SuggestedPoint] = Field(default_factory=list)
 
 
 class Health(BaseModel):

@@ -58,3 +58,5 @@ class Settings(BaseSettings):
     surrogate_raw_samples: int = Field(default=256, ge=1, le=100_000)
     # Suggest answers the most spread point within this fraction of the best MPF (0: the argmax).
     surrogate_mpf_margin: float = Field(default=0.1, ge=0.0, le=1.0)
+    # ... or within this much of it (absolute P(feasible)): where every value is tiny, spread.
+    surrogate_mpf_margin_abs: float = Field(default=0.025, ge=0.0, le=1.0)

@@ -53,6 +53,7 @@ class OptimizerConfig:
     n_gen: int = 5  # refinement generations after the raw samples (0: raw samples only)
     raw_samples: int = 256
     margin: float = 0.0  # > 0: the most spread candidate within this fraction of the best value
+    margin_abs: float = 0.0  # ... or within this much of it: near-equal tiny P(feasible) ties
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
@@ -156,16 +157,23 @@ class _Scorer:
         cols = self.genome.columns(genes)
         raw = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
         raw = np.broadcast_to(raw, (len(genes),))
-        if self.avoid.empty:
-            return raw, raw, np.zeros(len(genes))
-        z = self.avoid.encoder.encode(cols)
-        cfg = self.config
-        spread = self.avoid.spread(z)
-        score = raw + cfg.explore * np.minimum(spread, 1.0)
-        if self.avoid.has_pending:
-            near = np.exp(-0.5 * (self.avoid.pending_distances(z) / cfg.radius) ** 2)
-            score = score - cfg.penalty * near.max(axis=1)
+        score, spread = self.explore_terms(raw, cols, self.avoid)
         return score, raw, spread
+
+    def explore_terms(
+        self, raw: np.ndarray, cols: Columns, avoid: AvoidSet
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The score of candidates whose acquisition is `raw`, and their spread, against `avoid`."""
+        if avoid.empty:
+            return raw, np.zeros(len(raw))
+        z = avoid.encoder.encode(cols)
+        cfg = self.config
+        spread = avoid.spread(z)
+        score = raw + cfg.explore * np.minimum(spread, 1.0)
+        if avoid.has_pending:
+            near = np.exp(-0.5 * (avoid.pending_distances(z) / cfg.radius) ** 2)
+            score = score - cfg.penalty * near.max(axis=1)
+        return score, spread
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         """`(n,)` the score NSGA-II maximises."""
@@ -206,15 +214,43 @@ def maximize(
     `exclude`; `pending` points (served, not yet answered) are avoided softly. Deterministic for a
     given seed. Raises EncodingError (naming the field) on bad values, SpaceExhausted when a finite
     space is wholly excluded."""
+    found = maximize_batch(
+        acquisition,
+        space,
+        fixed=fixed,
+        exclude=exclude,
+        pending=pending,
+        seed=seed,
+        config=config,
+    )
+    return found[0]
+
+
+def maximize_batch(
+    acquisition: Acquisition,
+    space: Mapping[str, Domain],
+    *,
+    fixed: Mapping[str, Value] | None = None,
+    exclude: Sequence[Mapping[str, Value]] = (),
+    pending: Sequence[Mapping[str, Value]] = (),
+    seed: int = 0,
+    config: OptimizerConfig | None = None,
+    n: int = 1,
+    distinct: Sequence[str] | None = None,
+) -> list[Suggestion]:
+    """Up to `n` points, the first as `maximize` answers; each next one is chosen from the same
+    candidates as if the ones before were excluded (on the variables `distinct`, default all free
+    ones), so a batch is spread like successive suggestions at one node, for one optimisation.
+    Fewer than `n` only when a finite space runs out."""
     config = config or OptimizerConfig()
     fixed = fixed or {}
     free, fixed_in_space = _split(space, fixed)
+    fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
     if not free:
-        fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
-        return Suggestion(dict(fixed_in_space), float(np.asarray(acquisition(fixed_cols))[0]))
+        value = float(np.asarray(acquisition(fixed_cols))[0])
+        return [Suggestion(dict(fixed_in_space), value)]
     genome = _Genome(free)
     avoid = AvoidSet(free, fixed_in_space, exclude, pending)
-    fixed_cols = {k: value_column(k, space[k], [v]) for k, v in fixed_in_space.items()}
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes = _candidates(genome, free, scorer, config, seed)
@@ -223,24 +259,45 @@ def maximize(
         if _finite_size(free) is not None:
             raise SpaceExhausted("every point of the space is excluded")
         genes = np.random.default_rng(seed).random((config.pop_size, genome.n_genes))
-        ok = ~avoid.excluded(genome.columns(genes))
-    score, raw, spread = scorer.evaluate(genes)
-    best = _select(ok, score, raw, spread, config.margin)
-    x = avoid.encoder.points(genome.columns(genes[best : best + 1]))[0]
-    merged = {**x, **fixed_in_space}
-    return Suggestion({k: merged[k] for k in space}, float(raw[best]))
+    cols = genome.columns(genes)
+    raw = np.broadcast_to(
+        np.asarray(acquisition({**cols, **fixed_cols}), dtype=float), (len(genes),)
+    )
+    keys = [name for name in free if distinct is None or name in distinct] or list(free)
+    chosen: list[Mapping[str, Value]] = list(exclude)
+    found: list[Suggestion] = []
+    while len(found) < n:
+        if found:
+            avoid = AvoidSet(free, fixed_in_space, chosen, pending)
+        ok = ~avoid.excluded(cols)
+        if not ok.any():
+            break
+        score, spread = scorer.explore_terms(raw, cols, avoid)
+        best = _select(ok, score, raw, spread, config.margin, config.margin_abs)
+        x = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
+        found.append(Suggestion({k: x[k] for k in space}, float(raw[best])))
+        chosen.append({k: x[k] for k in keys})
+    return found
 
 
 def _select(
-    ok: np.ndarray, score: np.ndarray, raw: np.ndarray, spread: np.ndarray, margin: float
+    ok: np.ndarray,
+    score: np.ndarray,
+    raw: np.ndarray,
+    spread: np.ndarray,
+    margin: float,
+    margin_abs: float = 0.0,
 ) -> int:
     """The index of the answer among the allowed (`ok`) candidates: the best score, or with a
-    margin the most spread of those within `margin * |best|` of the best acquisition (ties:
-    the best score)."""
-    if margin <= 0:
+    margin the most spread of those within `max(margin * |best|, margin_abs)` of the best
+    acquisition (ties: the best score). The absolute part matters where the model rates
+    everything as almost surely infeasible: the argmax of such a surface is only its tail
+    nearest some feasible point (often one of another grasp or task), and the children piled
+    there fail together; among near-equal values, spreading is the better bet."""
+    if margin <= 0 and margin_abs <= 0:
         return int(np.argmax(np.where(ok, score, -np.inf)))
     best = raw[ok].max()
-    near = ok & (raw >= best - margin * abs(best))
+    near = ok & (raw >= best - max(margin * abs(best), margin_abs))
     order = np.lexsort((-score, -np.round(spread, 9), ~near))
     return int(order[0])
 

@@ -20,6 +20,8 @@ from client.models import Value
 from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
     HOPELESS_RATIO,
+    OUTLOOK_RATIO,
+    OUTLOOK_RECHECK,
     PW_K,
     UCB_C,
     ChildNode,
@@ -29,6 +31,8 @@ from planner.search.tree import (
     check_alternating,
     close,
     note_proposal,
+    outlook,
+    outlook_check_due,
     reward,
     ucb_select,
     widens,
@@ -80,9 +84,11 @@ class PWUCT:
         c: float = UCB_C,
         observer: SearchObserver | None = None,
         hopeless_ratio: float = HOPELESS_RATIO,
+        outlook_ratio: float = OUTLOOK_RATIO,
     ) -> None:
         check_alternating(world.skeleton)
         self.hopeless_ratio = hopeless_ratio
+        self.outlook_ratio = outlook_ratio
         self.world = world
         self.sampler = sampler
         self.k = k
@@ -141,8 +147,10 @@ class PWUCT:
             node.visits += 1
             if widens(node, self.k):
                 child = self._expand(node)
+            elif (untried := self._better_untried(node)) is not None:
+                child = self._expand(node, untried)
             else:
-                selected = ucb_select(node, self.c)
+                selected = ucb_select(node, self.c, self.outlook_ratio)
                 if selected is None:
                     return None
                 child = selected
@@ -160,8 +168,8 @@ class PWUCT:
         backup(child, r)
         return {**node.path, node.var.var: child.value} if child.success else {}
 
-    def _expand(self, node: DecisionNode) -> ChildNode:
-        ctx = SampleContext(
+    def _context(self, node: DecisionNode) -> SampleContext:
+        return SampleContext(
             var=node.var,
             path=dict(node.path),
             siblings=tuple(node.values),
@@ -172,8 +180,25 @@ class PWUCT:
             rng=self.rng,
             sibling_matrix=node.value_matrix,
         )
+
+    def _better_untried(self, node: DecisionNode) -> Proposal | None:
+        """The sampler's best untried value, if the knowledge base rates it `outlook_ratio`
+        times above every open child's outlook (see `tree.OUTLOOK_RATIO`)."""
+        if not outlook_check_due(node):
+            return None
+        node.next_outlook_check = node.visits + OUTLOOK_RECHECK
         started = time.perf_counter()
-        proposal = self.sampler.propose(ctx)
+        proposal = self.sampler.propose_untried(self._context(node))
+        self.sample_s += time.perf_counter() - started
+        best = outlook(node)
+        if proposal is None or best is None or proposal.p_feasible <= self.outlook_ratio * best:
+            return None
+        return proposal
+
+    def _expand(self, node: DecisionNode, chosen: Proposal | None = None) -> ChildNode:
+        ctx = self._context(node)
+        started = time.perf_counter()
+        proposal = chosen if chosen is not None else self.sampler.propose(ctx)
         self.sample_s += time.perf_counter() - started
         value = proposal
         if isinstance(proposal, Proposal):

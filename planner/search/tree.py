@@ -28,6 +28,16 @@ type with few feasible points never predicts much above its base rate anywhere).
 HOPELESS_MIN_CHILDREN = 8
 """Only a node with this many children can be hopeless: a refit that lowers every prediction
 at once must not let every parent widen at every visit."""
+OUTLOOK_RATIO = 1.5
+"""At a node whose open children the knowledge base has rated (the P(feasible) of each child's
+latest proposal below it, its *outlook*), an untried value that is this many times as likely to
+be feasible as the best outlook opens at once instead of waiting for the PW law, and UCB selects
+only among children within this factor of the best outlook: a grasp that no placement can
+follow, or a box placed where the next box has no room, loses the search to a value that the
+knowledge base expects to work."""
+OUTLOOK_RECHECK = 3
+"""Visits of a node between two comparisons of an untried value with its open children (each
+costs the sampler a suggestion)."""
 
 
 @dataclass(eq=False)
@@ -61,6 +71,8 @@ class DecisionNode:
     n_hopeless: int = 0  # open children whose next node is hopeless
     hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     first_p_feasible: float | None = None  # the knowledge base's view when the search came here
+    last_p_feasible: float | None = None  # its view at the latest proposal: the outlook
+    next_outlook_check: int = 0  # visit count at which untried choices are compared again
     values: list[Value] = field(default_factory=list)  # the children's values, in order
     _matrix: np.ndarray | None = field(default=None, repr=False)
     _filled: int = field(default=0, repr=False)
@@ -123,6 +135,7 @@ def note_proposal(node: DecisionNode, p_feasible: float, ratio: float = HOPELESS
     measured against the first one made at this node."""
     if node.first_p_feasible is None:
         node.first_p_feasible = p_feasible
+    node.last_p_feasible = p_feasible
     tried = len(node.children) >= HOPELESS_MIN_CHILDREN
     mark_hopeless(node, tried and p_feasible < ratio * node.first_p_feasible)
 
@@ -152,15 +165,46 @@ def widens(node: DecisionNode, k: float = PW_K) -> bool:
     return node.visits > k * n_children**2
 
 
-def ucb_select(node: DecisionNode, c: float = UCB_C) -> ChildNode | None:
-    """The open child maximising `reward + c sqrt(ln N / n)`; None when all are closed.
-    Ties go to the earliest child, so selection is deterministic."""
-    best: ChildNode | None = None
-    best_score = -math.inf
-    log_n = math.log(max(node.visits, 1))
+def outlook(node: DecisionNode) -> float | None:
+    """The best outlook among `node`'s open children; None unless every open child (one at
+    least) has been rated by the knowledge base."""
+    best: float | None = None
     for child in node.children:
         if child.closed:
             continue
+        p = child.next.last_p_feasible if child.next is not None else None
+        if p is None:
+            return None
+        best = p if best is None else max(best, p)
+    return best
+
+
+def outlook_check_due(node: DecisionNode) -> bool:
+    """Whether to compare an untried value of `node` with its open children now: values left,
+    rated open children, and `OUTLOOK_RECHECK` visits since the last comparison."""
+    if node.exhausted or node.visits < node.next_outlook_check:
+        return False
+    return outlook(node) is not None
+
+
+def ucb_select(
+    node: DecisionNode, c: float = UCB_C, outlook_ratio: float | None = None
+) -> ChildNode | None:
+    """The open child maximising `reward + c sqrt(ln N / n)`; None when all are closed.
+    With `outlook_ratio`, a node whose open children are all rated selects only among those
+    within that factor of the best outlook. Ties go to the earliest child, so selection is
+    deterministic."""
+    best: ChildNode | None = None
+    best_score = -math.inf
+    log_n = math.log(max(node.visits, 1))
+    best_outlook = outlook(node) if outlook_ratio else None
+    for child in node.children:
+        if child.closed:
+            continue
+        if best_outlook is not None and outlook_ratio is not None:
+            assert child.next is not None and child.next.last_p_feasible is not None
+            if child.next.last_p_feasible * outlook_ratio < best_outlook:
+                continue
         score = child.reward + c * math.sqrt(log_n / max(child.visits, 1))
         if score > best_score:
             best, best_score = child, score

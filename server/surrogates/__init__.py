@@ -28,6 +28,7 @@ def install(app: FastAPI) -> None:
             n_gen=settings.surrogate_generations,
             raw_samples=settings.surrogate_raw_samples,
             margin=settings.surrogate_mpf_margin,
+            margin_abs=settings.surrogate_mpf_margin_abs,
         ),
     )
     engine = SurrogateEngine(app.state.store, config)

@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import secrets
 
-from client.models import PredictIn, PredictOut, SuggestIn, SuggestOut
+import numpy as np
+
+from client.models import PredictIn, PredictOut, SuggestedPoint, SuggestIn, SuggestOut
 from server.errors import Conflict, InvalidInput
 from server.services.kbs import kb_id
 from server.surrogates.engine import ModelHandle, SurrogateEngine
 from surrogate.acquisition import MPF, ConstraintTerm
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
-from surrogate.optimize import SpaceExhausted, maximize, space_filling
+from surrogate.optimize import SpaceExhausted, maximize_batch, space_filling
 
 
 def _check_binding(i: int, type_id: str, handle: ModelHandle, body: SuggestIn) -> None:
@@ -74,7 +76,7 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     try:
         if terms:
             mpf = MPF(terms)
-            found = maximize(
+            found = maximize_batch(
                 mpf,
                 body.space,
                 fixed=body.fixed,
@@ -82,31 +84,46 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
                 pending=pending,
                 seed=seed,
                 config=engine.config.optimizer,
+                n=body.n,
+                distinct=[var for var in body.space if var not in body.lookahead],
             )
-            x = found.x
-            per_term = mpf.per_term(SpaceEncoder(body.space).columns([x]))[:, 0]
+            xs = [s.x for s in found]
+            per_term = mpf.per_term(SpaceEncoder(body.space).columns(xs))
         else:
-            x = space_filling(
-                body.space, fixed=body.fixed, exclude=body.exclude, pending=pending, seed=seed
-            )
-            per_term = []
+            xs = [
+                space_filling(
+                    body.space, fixed=body.fixed, exclude=body.exclude, pending=pending, seed=seed
+                )
+            ]
+            per_term = np.zeros((0, 1))
     except EncodingError as exc:
         raise InvalidInput(str(exc)) from exc
     except SpaceExhausted as exc:
         raise Conflict(f"exclude: {exc}") from exc
-    p_feasible: dict[str, float] = {}
-    for term, p in zip(terms, per_term, strict=True):
-        p_feasible[term.name] = min(float(p), p_feasible.get(term.name, 1.0))
-    proposed = {var: value for var, value in x.items() if var not in body.lookahead}
-    engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
+    points = [_point(x, terms, per_term[:, i]) for i, x in enumerate(xs)]
+    if not body.probe:
+        for point in points:
+            proposed = {var: value for var, value in point.x.items() if var not in body.lookahead}
+            engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
+    first = points[0]
     return SuggestOut(
-        x=x,
-        mpf=min(p_feasible.values()) if p_feasible else 0.5,
-        p_feasible=p_feasible,
+        x=first.x,
+        mpf=first.mpf,
+        p_feasible=first.p_feasible,
+        batch=points if body.n > 1 else [],
         method="mpf" if terms else "space-filling",
         n_fitted=fitted,
         n_pending=len(pending),
     )
+
+
+def _point(x: dict, terms: list[ConstraintTerm], per_term: np.ndarray) -> SuggestedPoint:
+    """One answer point: each type's P(feasible) (a type bound twice: its lower one), and MPF."""
+    p_feasible: dict[str, float] = {}
+    for term, p in zip(terms, per_term, strict=True):
+        p_feasible[term.name] = min(float(p), p_feasible.get(term.name, 1.0))
+    mpf = min(p_feasible.values()) if p_feasible else 0.5
+    return SuggestedPoint(x=x, mpf=mpf, p_feasible=p_feasible)
 
 
 def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> PredictOut:

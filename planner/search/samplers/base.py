@@ -47,6 +47,12 @@ class Sampler(Protocol):
         """A value for `ctx.var`, from its domain; never a sibling of a categorical variable."""
         ...
 
+    def propose_untried(self, ctx: SampleContext) -> Proposal | None:
+        """At a node that the PW law keeps from widening: the best untried value with its
+        P(feasible), or None for a sampler without that view. The tree opens it when it beats
+        every open child's outlook (`tree.OUTLOOK_RATIO`)."""
+        ...
+
     def close(self) -> None:
         """Release whatever the sampler holds (connections, threads)."""
         ...

@@ -9,20 +9,37 @@ no type is active, or the service cannot answer, the node expands like the quasi
 
 from __future__ import annotations
 
-from client.models import CategoricalDomain, Value
+from dataclasses import dataclass
+
+from client.models import CategoricalDomain, Constraint, Value
 from planner.knowledge import KnowledgeSession
 from planner.search.samplers import register
 from planner.search.samplers.base import Proposal, SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
+BATCH = 4
+"""Points per suggestion request: a node's next expansions come from one answer. A fit takes
+longer than a few rollouts, so successive requests would mostly see the same model; the batch
+is spread like successive answers would be, and costs one request instead of `BATCH`."""
+
+NodeKey = tuple[str, tuple[tuple[str, object], ...]]
+
+
+@dataclass
+class _Batch:
+    constraints: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]
+    proposals: list[Proposal]
+
 
 class CpBoSampler:
     name = "cp-bo"
 
-    def __init__(self, knowledge: KnowledgeSession) -> None:
+    def __init__(self, knowledge: KnowledgeSession, batch: int = BATCH) -> None:
         self.knowledge = knowledge
+        self.batch = batch
         self.guided = 0
         self.unguided = 0
+        self._batches: dict[NodeKey, _Batch] = {}
 
     def propose(self, ctx: SampleContext) -> Value | Proposal:
         domain = ctx.var.domain
@@ -32,17 +49,57 @@ class CpBoSampler:
                 return left[0]
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if constraints:
-            seed = int(ctx.rng.integers(2**31 - 1))
-            answer = self.knowledge.suggest(ctx.var, ctx.path, ctx.siblings, constraints, seed)
-            value = answer.x.get(ctx.var.var) if answer is not None else None
-            if value is not None and _valid(value, ctx):
+            proposal = self._from_batch(ctx, constraints)
+            if proposal is not None:
                 self.guided += 1
-                return Proposal(value, answer.mpf)
+                return proposal
         self.unguided += 1
         return space_filling(ctx)
 
-    def close(self) -> None:
+    def _from_batch(self, ctx: SampleContext, constraints: list[Constraint]) -> Proposal | None:
+        """The next valid point of this node's batch, asking for a new batch when it is used up
+        or the node's constraints changed (a type became active here)."""
+        key = _node_key(ctx)
+        signature = tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in constraints)
+        cached = self._batches.get(key)
+        if cached is None or cached.constraints != signature or not cached.proposals:
+            seed = int(ctx.rng.integers(2**31 - 1))
+            answer = self.knowledge.suggest(
+                ctx.var, ctx.path, ctx.siblings, constraints, seed, n=self.batch
+            )
+            if answer is None:
+                return None
+            points = answer.batch or [answer]
+            values = [(p.x.get(ctx.var.var), p.mpf) for p in points]
+            cached = _Batch(signature, [Proposal(v, mpf) for v, mpf in values if v is not None])
+            self._batches[key] = cached
+        while cached.proposals:
+            proposal = cached.proposals.pop(0)
+            if _valid(proposal.value, ctx):
+                return proposal
         return None
+
+    def propose_untried(self, ctx: SampleContext) -> Proposal | None:
+        """The knowledge base's best untried value (a look: nothing is recorded as pending)."""
+        constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
+        if not constraints:
+            return None
+        seed = int(ctx.rng.integers(2**31 - 1))
+        answer = self.knowledge.suggest(
+            ctx.var, ctx.path, ctx.siblings, constraints, seed, probe=True
+        )
+        value = answer.x.get(ctx.var.var) if answer is not None else None
+        if value is None or not _valid(value, ctx):
+            return None
+        return Proposal(value, answer.mpf)
+
+    def close(self) -> None:
+        self._batches.clear()
+
+
+def _node_key(ctx: SampleContext) -> NodeKey:
+    path = tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in ctx.path.items()))
+    return ctx.var.var, path
 
 
 def _valid(value: Value, ctx: SampleContext) -> bool:

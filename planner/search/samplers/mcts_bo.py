@@ -62,6 +62,9 @@ class MctsBoSampler:
         self.guided += 1
         return suggestion.x[var]
 
+    def propose_untried(self, ctx: SampleContext) -> None:
+        return None
+
     def close(self) -> None:
         self._fits.clear()
 

@@ -106,6 +106,9 @@ class OptunaTpeSampler:
         assert isinstance(domain, CategoricalDomain)
         return untried_choice(domain, list(ctx.siblings), ctx.rng)
 
+    def propose_untried(self, ctx: SampleContext) -> None:
+        return None
+
     def close(self) -> None:
         self._studies.clear()
         self._pending.clear()

@@ -65,6 +65,9 @@ class QuasiRandomSampler:
     def propose(self, ctx: SampleContext) -> Value:
         return space_filling(ctx)
 
+    def propose_untried(self, ctx: SampleContext) -> None:
+        return None
+
     def close(self) -> None:
         return None
 

@@ -51,3 +51,42 @@ def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_se
             guided.append(result.rollouts)
             baseline.append(run_plan("analytic:desk", "quasi-random", seed).rollouts)
     assert statistics.mean(guided) < statistics.mean(baseline), (guided, baseline)
+
+
+def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb):
+    """Four expansions of one shelf node cost one suggestion; the fifth asks again. The values
+    are distinct, inside the domain, and the untried-value probe is a separate look."""
+    import numpy as np
+
+    from planner.knowledge import KnowledgeSession
+    from planner.search import PWUCT
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import Proposal, SampleContext
+    from planner.search.samplers.cp_bo import BATCH, CpBoSampler
+    from planner.search.samplers.quasi_random import QuasiRandomSampler
+
+    with CpkbClient(live_kb.url) as client:
+        world = analytic_world("desk")
+        stock = KnowledgeSession(client, live_kb.name, world, background=False)
+        PWUCT(world, QuasiRandomSampler(), seed=0, observer=stock).run(40, stop_at_first=False)
+        stock.close()
+        wait_for_fits(client, live_kb.name)
+        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        session.prematch()
+        sampler = CpBoSampler(session)
+        pose = world.skeleton.decisions[1]
+        siblings: list = []
+        rng = np.random.default_rng(0)
+        for expansion in range(BATCH + 1):
+            ctx = SampleContext(pose, {"#dir1": "front"}, tuple(siblings), (), (), 1, 1, rng)
+            proposal = sampler.propose(ctx)
+            assert isinstance(proposal, Proposal) and 0.0 <= proposal.p_feasible <= 1.0
+            assert proposal.value not in siblings and all(0 <= v <= 1 for v in proposal.value)
+            siblings.append(proposal.value)
+            assert session.stats.suggestions == (1 if expansion < BATCH else 2)
+        grasp = world.skeleton.decisions[0]
+        ctx = SampleContext(grasp, {}, ("front",), (), (), 0, 1, rng)
+        untried = sampler.propose_untried(ctx)
+        assert untried is not None and untried.value != "front"
+        assert session.stats.suggestions == 3
+        session.close()

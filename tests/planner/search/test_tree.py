@@ -17,6 +17,9 @@ from planner.search.tree import (
     backup,
     close,
     mark_hopeless,
+    note_proposal,
+    outlook,
+    outlook_check_due,
     reward,
     ucb_select,
     widens,
@@ -208,3 +211,65 @@ def test_search_widens_above_nodes_whose_proposals_are_hopeless():
         return len(search.root.children)
 
     assert root_children(FadingSampler()) > root_children(QuasiRandomSampler())
+
+
+def test_selection_keeps_to_children_within_the_outlook_ratio_of_the_best():
+    n = node(CategoricalDomain(choices=["a", "b", "c"]))
+    trap = add_child(n, "a", visits=1, r=0.075)
+    promising = add_child(n, "b", visits=9, r=0.075)
+    n.visits = 10
+    assert ucb_select(n) is trap  # plain UCB: the less visited
+    assert outlook(n) is None  # not every open child rated: no outlook
+    assert ucb_select(n, outlook_ratio=1.5) is trap
+    note_proposal(trap.next, 0.02)
+    note_proposal(promising.next, 0.3)
+    assert outlook(n) == 0.3
+    assert ucb_select(n, outlook_ratio=1.5) is promising
+    note_proposal(promising.next, 0.025)  # its own proposals have since failed
+    assert ucb_select(n, outlook_ratio=1.5) is trap
+
+
+def test_an_outlook_check_is_due_every_few_visits_while_values_are_left():
+    n = node(CategoricalDomain(choices=["a", "b"]))
+    child = add_child(n, "a")
+    n.visits = 5
+    assert not outlook_check_due(n)  # its child is not rated yet
+    note_proposal(child.next, 0.1)
+    assert outlook_check_due(n)
+    n.next_outlook_check = 8
+    assert not outlook_check_due(n)
+    n.visits = 8
+    assert outlook_check_due(n)
+    add_child(n, "b", FAIL)
+    assert not outlook_check_due(n)  # exhausted
+
+
+class OutlookSampler(QuasiRandomSampler):
+    """Rates proposals under `#dir1 = top` as ever less likely and any untried grasp as 0.4: a
+    knowledge base that has learned that no placement follows `top`."""
+
+    def __init__(self) -> None:
+        self.untried_asked = 0
+
+    def propose(self, ctx):
+        value = super().propose(ctx)
+        if ctx.depth == 1:
+            p = 0.4 if ctx.path["#dir1"] != "top" else 0.4 / (1 + len(ctx.siblings))
+            return Proposal(value, p)
+        return "top" if "top" not in ctx.siblings else value
+
+    def propose_untried(self, ctx):
+        self.untried_asked += 1
+        return Proposal(super().propose(ctx), 0.4)
+
+
+def test_search_leaves_a_choice_whose_outlook_fell_for_an_untried_one():
+    def top_visits(sampler, ratio: float) -> int:
+        search = PWUCT(analytic_world("deskP"), sampler, seed=0, outlook_ratio=ratio)
+        search.run(40, stop_at_first=False)
+        top = next(c for c in search.root.children if c.value == "top")
+        return top.visits
+
+    guided = OutlookSampler()
+    assert top_visits(guided, 1.5) < 10 < top_visits(OutlookSampler(), math.inf)
+    assert guided.untried_asked > 0
