@@ -50,7 +50,8 @@ class Settings(BaseSettings):
     surrogate_enabled: bool = True
     surrogate_fit_process: bool = True
     surrogate_max_inducing: int = Field(default=128, ge=8, le=1024)
-    surrogate_refresh_s: float = Field(default=2.0, ge=0)
+    # A type in use loads its new points when they are older than this (one indexed query).
+    surrogate_refresh_s: float = Field(default=0.5, ge=0)
     surrogate_pending_ttl_s: float = Field(default=30.0, ge=0)
     surrogate_prefit_types: int = Field(default=16, ge=0)
     surrogate_pop_size: int = Field(default=24, ge=4, le=1000)

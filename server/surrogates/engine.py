@@ -41,7 +41,7 @@ class EngineConfig:
     fit_in_process: bool = True
     fit_threads: int = 1
     max_inducing: int = 128
-    refresh_s: float = 2.0
+    refresh_s: float = 0.5
     pending_ttl_s: float = 30.0
     prefit_types: int = 16
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
@@ -71,6 +71,7 @@ class _Entry:
     checked_at: float = 0.0
     fitted_at: datetime | None = None
     error: str | None = None
+    merging: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def n_points(self) -> int:
@@ -175,8 +176,30 @@ class SurrogateEngine:
         if entry is None:
             entry = self._load_new(key)
         elif time.monotonic() - entry.checked_at > self.config.refresh_s:
-            self._enqueue(key)
+            self._catch_up(key, entry)
         return ModelHandle(entry.space, entry.predictor, entry.n_points, entry.n_fitted)
+
+    def _catch_up(self, key: Key, entry: _Entry) -> None:
+        """A type in use whose points are older than `refresh_s`: load the new points (one
+        indexed query). A type without both classes gets its stated prior at once, here (a
+        prior is a distance computation, not a fit: it must not wait behind other knowledge
+        bases' fits); one that needs a model goes to the front of the fit queue, since a
+        planner is using it now."""
+        if not entry.merging.acquire(blocking=False):
+            return  # another thread is catching this type up
+        try:
+            new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
+            self._merge(key, entry, new)
+        finally:
+            entry.merging.release()
+        if entry.n_fitted == entry.n_points:
+            return
+        if _needs_model(entry.y):
+            self._enqueue(key, urgent=True)
+            return
+        with self._cond:
+            entry.predictor = _prior(entry.z, entry.y)
+            entry.n_fitted, entry.status = entry.n_points, "prior"
 
     def predict(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
         """P(feasible) of `xs` (decision label -> value) under the type's current model."""
@@ -218,9 +241,12 @@ class SurrogateEngine:
         return True
 
     # --- internals ---------------------------------------------------------------------
-    def _enqueue(self, key: Key) -> None:
+    def _enqueue(self, key: Key, *, urgent: bool = False) -> None:
+        """Queue a type for a refresh; an `urgent` one (requested right now) goes first."""
         with self._cond:
             self._queue[key] = None
+            if urgent:
+                self._queue.move_to_end(key, last=False)
             self._cond.notify_all()
         if self._thread is None:
             self.start()
@@ -268,8 +294,9 @@ class SurrogateEngine:
         if entry is None:
             entry = self._load_new(key)
         else:
-            new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
-            entry = self._merge(key, entry, new)
+            with entry.merging:
+                new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
+                entry = self._merge(key, entry, new)
         if entry.n_fitted == entry.n_points:
             return  # nothing new (after an error: retried when points arrive)
         if not _needs_model(entry.y):

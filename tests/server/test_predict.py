@@ -28,3 +28,43 @@ def test_predict_answers_probabilities_or_a_clear_4xx(client: Any) -> None:
     assert missing.status_code == 404
     bad = client.post(url, json={"x": [{"#dir": "up", "#pose": [0.9, 0.2, 0.0]}]})
     assert bad.status_code == 422 and bad.json()["detail"].startswith("x[0].#dir")
+
+
+def test_a_prior_follows_new_points_while_the_fit_queue_is_busy(sqlite_url: str) -> None:
+    """A one-class type answers from its prior; its new points count at the next request even
+    while the coordinator is held up (here: held on purpose, as by other knowledge bases' fits)."""
+    import threading
+
+    from suggest_support import REACH
+
+    with make_client(sqlite_url, surrogate_refresh_s=0) as client:
+        engine = client.app.state.surrogates
+        x = {"#dir": "top", "#pose": [0.3, 0.3, 0.0]}
+
+        def post(pose: list[float]) -> str:
+            point = {"graph": REACH, "x": {**x, "#pose": pose}, "feasible": False}
+            answer = client.post("/v1/kbs/default/points", json={"points": [point]})
+            return answer.json()["results"][0]["type_id"]
+
+        type_id = post([0.9, 0.9, 2.0])
+        url = f"/v1/kbs/default/types/{type_id}/predict"
+        assert client.app.state.surrogates.wait_idle(timeout=60)
+        before = client.post(url, json={"x": [x]}).json()["p_feasible"][0]
+        held, release = threading.Event(), threading.Event()
+        refresh = engine._refresh
+
+        def busy(key):
+            held.set()
+            release.wait(timeout=60)
+            refresh(key)
+
+        engine._refresh = busy
+        try:
+            post([0.31, 0.3, 0.0])
+            assert held.wait(timeout=10)
+            after = client.post(url, json={"x": [x]}).json()["p_feasible"][0]
+            state = client.get(f"/v1/kbs/default/types/{type_id}").json()["surrogate"]
+        finally:
+            release.set()
+        assert before > 0.45 and after < 0.2
+        assert state["n_fitted"] == 2
