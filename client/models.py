@@ -210,8 +210,7 @@ class SuggestIn(_Strict):
     """`lookahead` names space variables that are later decisions: MPF is maximised jointly over
     them (the answer for the other variables must leave a feasible continuation), their values
     in `x` are only a hint, and they are not recorded as pending. An `exclude` point may give
-    only some variables: it excludes every point that agrees with it on those. A `probe` is a
-    look at the best point, not a proposal: nothing is recorded as pending. With `n > 1` the
+    only some variables: it excludes every point that agrees with it on those. With `n > 1` the
     answer's `batch` holds up to `n` points (the first is `x`), each the best away from those
     before it on the non-lookahead variables: what `n` successive suggestions at one node would
     be if the model did not change in between, for the price of one."""
@@ -222,7 +221,6 @@ class SuggestIn(_Strict):
     exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
     lookahead: list[Label] = Field(default_factory=list, max_length=MAX_DIM)
     seed: int | None = None
-    probe: bool = False
     n: int = Field(1, ge=1, le=MAX_BATCH)
 
 

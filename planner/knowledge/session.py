@@ -259,11 +259,10 @@ class KnowledgeSession:
         constraints: list[Constraint],
         seed: int,
         *,
-        probe: bool = False,
         n: int = 1,
     ) -> SuggestOut | None:
         """The MPF suggestion of the service (with `n > 1`, a batch of spread points), or None
-        if the service could not answer; a `probe` is only a look (nothing is pending)."""
+        if the service could not answer."""
         bound = {v for c in constraints for v in c.bind.values()} - {var.var}
         later = sorted(bound - set(path))
         request = SuggestIn(
@@ -273,7 +272,6 @@ class KnowledgeSession:
             exclude=[{var.var: value} for value in siblings],
             lookahead=later,
             seed=seed,
-            probe=probe,
             n=n,
         )
         started = time.perf_counter()

@@ -21,7 +21,6 @@ from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
     HOPELESS_RATIO,
     OUTLOOK_RATIO,
-    OUTLOOK_RECHECK,
     PW_K,
     UCB_C,
     ChildNode,
@@ -186,7 +185,6 @@ class PWUCT:
         times above every open child's outlook (see `tree.OUTLOOK_RATIO`)."""
         if not outlook_check_due(node):
             return None
-        node.next_outlook_check = node.visits + OUTLOOK_RECHECK
         started = time.perf_counter()
         proposal = self.sampler.propose_untried(self._context(node))
         self.sample_s += time.perf_counter() - started

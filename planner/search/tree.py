@@ -35,9 +35,6 @@ be feasible as the best outlook opens at once instead of waiting for the PW law,
 only among children within this factor of the best outlook: a grasp that no placement can
 follow, or a box placed where the next box has no room, loses the search to a value that the
 knowledge base expects to work."""
-OUTLOOK_RECHECK = 3
-"""Visits of a node between two comparisons of an untried value with its open children (each
-costs the sampler a suggestion)."""
 
 
 @dataclass(eq=False)
@@ -72,7 +69,6 @@ class DecisionNode:
     hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     first_p_feasible: float | None = None  # the knowledge base's view when the search came here
     last_p_feasible: float | None = None  # its view at the latest proposal: the outlook
-    next_outlook_check: int = 0  # visit count at which untried choices are compared again
     values: list[Value] = field(default_factory=list)  # the children's values, in order
     _matrix: np.ndarray | None = field(default=None, repr=False)
     _filled: int = field(default=0, repr=False)
@@ -180,11 +176,9 @@ def outlook(node: DecisionNode) -> float | None:
 
 
 def outlook_check_due(node: DecisionNode) -> bool:
-    """Whether to compare an untried value of `node` with its open children now: values left,
-    rated open children, and `OUTLOOK_RECHECK` visits since the last comparison."""
-    if node.exhausted or node.visits < node.next_outlook_check:
-        return False
-    return outlook(node) is not None
+    """Whether an untried value of `node` can be compared with its open children: values left
+    and every open child rated."""
+    return not node.exhausted and outlook(node) is not None
 
 
 def ucb_select(

@@ -101,10 +101,9 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     except SpaceExhausted as exc:
         raise Conflict(f"exclude: {exc}") from exc
     points = [_point(x, terms, per_term[:, i]) for i, x in enumerate(xs)]
-    if not body.probe:
-        for point in points:
-            proposed = {var: value for var, value in point.x.items() if var not in body.lookahead}
-            engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
+    for point in points:
+        proposed = {var: value for var, value in point.x.items() if var not in body.lookahead}
+        engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
     first = points[0]
     return SuggestOut(
         x=first.x,

@@ -21,6 +21,8 @@ BATCH = 4
 """Points per suggestion request: a node's next expansions come from one answer. A fit takes
 longer than a few rollouts, so successive requests would mostly see the same model; the batch
 is spread like successive answers would be, and costs one request instead of `BATCH`."""
+BATCH_MAX_AGE = 8
+"""Rollouts after which a node's batch is asked for anew, so that it follows the refits."""
 
 NodeKey = tuple[str, tuple[tuple[str, object], ...]]
 
@@ -29,6 +31,7 @@ NodeKey = tuple[str, tuple[tuple[str, object], ...]]
 class _Batch:
     constraints: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]
     proposals: list[Proposal]
+    rollout: int
 
 
 class CpBoSampler:
@@ -47,51 +50,61 @@ class CpBoSampler:
             left = [c for c in domain.choices if c not in ctx.siblings]
             if len(left) == 1:
                 return left[0]
-        constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
-        if constraints:
-            proposal = self._from_batch(ctx, constraints)
-            if proposal is not None:
-                self.guided += 1
-                return proposal
+        batch = self._batch(ctx)
+        if batch is not None and batch.proposals:
+            self.guided += 1
+            return batch.proposals.pop(0)
         self.unguided += 1
         return space_filling(ctx)
 
-    def _from_batch(self, ctx: SampleContext, constraints: list[Constraint]) -> Proposal | None:
-        """The next valid point of this node's batch, asking for a new batch when it is used up
-        or the node's constraints changed (a type became active here)."""
-        key = _node_key(ctx)
-        signature = tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in constraints)
-        cached = self._batches.get(key)
-        if cached is None or cached.constraints != signature or not cached.proposals:
-            seed = int(ctx.rng.integers(2**31 - 1))
-            answer = self.knowledge.suggest(
-                ctx.var, ctx.path, ctx.siblings, constraints, seed, n=self.batch
-            )
-            if answer is None:
-                return None
-            points = answer.batch or [answer]
-            values = [(p.x.get(ctx.var.var), p.mpf) for p in points]
-            cached = _Batch(signature, [Proposal(v, mpf) for v, mpf in values if v is not None])
-            self._batches[key] = cached
-        while cached.proposals:
-            proposal = cached.proposals.pop(0)
-            if _valid(proposal.value, ctx):
-                return proposal
-        return None
-
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
-        """The knowledge base's best untried value (a look: nothing is recorded as pending)."""
+        """The next point of this node's batch, left in it: the best untried value the
+        knowledge base knows of, for the price of a look."""
+        batch = self._batch(ctx)
+        return batch.proposals[0] if batch is not None and batch.proposals else None
+
+    def _batch(self, ctx: SampleContext) -> _Batch | None:
+        """This node's batch without the points since tried; asked anew when it is used up,
+        older than `BATCH_MAX_AGE` rollouts, or the node's constraints changed (a type became
+        active here). None where no type is active or the service cannot answer."""
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if not constraints:
             return None
+        key = _node_key(ctx)
+        signature = tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in constraints)
+        cached = self._batches.get(key)
+        if cached is not None:
+            cached.proposals = [p for p in cached.proposals if _valid(p.value, ctx)]
+        if (
+            cached is None
+            or cached.constraints != signature
+            or not cached.proposals
+            or ctx.rollout - cached.rollout > BATCH_MAX_AGE
+        ):
+            cached = self._ask(ctx, constraints, signature)
+            if cached is None:
+                return None
+            self._batches[key] = cached
+        return cached
+
+    def _ask(
+        self,
+        ctx: SampleContext,
+        constraints: list[Constraint],
+        signature: tuple[tuple[str, tuple[tuple[str, str], ...]], ...],
+    ) -> _Batch | None:
         seed = int(ctx.rng.integers(2**31 - 1))
         answer = self.knowledge.suggest(
-            ctx.var, ctx.path, ctx.siblings, constraints, seed, probe=True
+            ctx.var, ctx.path, ctx.siblings, constraints, seed, n=self.batch
         )
-        value = answer.x.get(ctx.var.var) if answer is not None else None
-        if value is None or not _valid(value, ctx):
+        if answer is None:
             return None
-        return Proposal(value, answer.mpf)
+        proposals = [
+            Proposal(value, point.mpf)
+            for point in answer.batch or [answer]
+            if (value := point.x.get(ctx.var.var)) is not None and _valid(value, ctx)
+        ]
+        return _Batch(signature, proposals, ctx.rollout)
 
     def close(self) -> None:
         self._batches.clear()
@@ -108,6 +121,7 @@ def _valid(value: Value, ctx: SampleContext) -> bool:
         return isinstance(value, str) and value in domain.choices and value not in ctx.siblings
     return (
         isinstance(value, list)
+        and value not in ctx.siblings
         and len(value) == len(domain.low)
         and all(lo <= v <= hi for v, lo, hi in zip(value, domain.low, domain.high, strict=True))
     )

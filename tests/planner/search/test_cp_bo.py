@@ -55,14 +55,15 @@ def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_se
 
 def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb):
     """Four expansions of one shelf node cost one suggestion; the fifth asks again. The values
-    are distinct, inside the domain, and the untried-value probe is a separate look."""
+    are distinct and inside the domain; a look at the best untried value takes it from the
+    node's batch without using it up."""
     import numpy as np
 
     from planner.knowledge import KnowledgeSession
     from planner.search import PWUCT
     from planner.search.analytic import analytic_world
     from planner.search.samplers.base import Proposal, SampleContext
-    from planner.search.samplers.cp_bo import BATCH, CpBoSampler
+    from planner.search.samplers.cp_bo import BATCH, BATCH_MAX_AGE, CpBoSampler
     from planner.search.samplers.quasi_random import QuasiRandomSampler
 
     with CpkbClient(live_kb.url) as client:
@@ -88,5 +89,9 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
         ctx = SampleContext(grasp, {}, ("front",), (), (), 0, 1, rng)
         untried = sampler.propose_untried(ctx)
         assert untried is not None and untried.value != "front"
+        assert sampler.propose_untried(ctx) == untried == sampler.propose(ctx)
         assert session.stats.suggestions == 3
+        later = SampleContext(grasp, {}, ("front",), (), (), 0, 1 + BATCH_MAX_AGE + 1, rng)
+        sampler.propose_untried(later)
+        assert session.stats.suggestions == 4  # an old batch is asked for anew
         session.close()
