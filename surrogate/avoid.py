@@ -27,6 +27,7 @@ class _Group:
     cols: Columns
     z: np.ndarray  # (k, d) encoded on the group's own variables
     mask: np.ndarray  # (d,) columns of the full encoding that the group's variables occupy
+    walls: np.ndarray  # (d,) bool: which of those columns are continuous (bounded by walls)
 
 
 def _agrees(point: Mapping[str, Value], fixed: Mapping[str, Value]) -> bool:
@@ -63,7 +64,15 @@ class AvoidSet:
             sub = SpaceEncoder({name: self.free[name] for name in names})
             cols = sub.columns(members, where=where)
             mask = np.concatenate([self.blocks[name] for name in names])
-            groups.append(_Group(names, cols, sub.encode(cols), mask))
+            walls = np.concatenate(
+                [
+                    np.full(
+                        len(self.blocks[name]), not isinstance(self.free[name], CategoricalDomain)
+                    )
+                    for name in names
+                ]
+            )
+            groups.append(_Group(names, cols, sub.encode(cols), mask, walls))
         return groups
 
     def _fits(self, point: Mapping[str, Value]) -> bool:
@@ -104,10 +113,19 @@ class AvoidSet:
 
     def spread(self, z: np.ndarray) -> np.ndarray:
         """`(n,)` normalised distance from each encoded candidate `(n, D)` to the nearest point
-        to avoid, each group measured on its own variables (0 with none)."""
+        to avoid, each group measured on its own variables (0 with none). A continuous
+        variable's walls count as mirrors: a candidate's distance to its own image beyond the
+        nearest wall (twice the distance to it) caps its spread. Without them the most spread
+        point is always in a corner of the box, and a node's children pile up on its faces
+        (in yaw, at the two ends of one range) where a space-filling design covers its inside."""
         nearest = np.full(len(z), np.inf)
         for group in (*self.groups, *self.pending_groups):
-            nearest = np.minimum(nearest, _distances(z[:, group.mask], group.z).min(axis=1))
+            own = z[:, group.mask]
+            nearest = np.minimum(nearest, _distances(own, group.z).min(axis=1))
+            if group.walls.any():
+                bounded = own[:, group.walls]
+                wall = np.minimum(bounded, 1.0 - bounded).min(axis=1)
+                nearest = np.minimum(nearest, 2.0 * np.maximum(wall, 0.0) / np.sqrt(own.shape[1]))
         return np.where(np.isfinite(nearest), nearest, 0.0)
 
     def pending_distances(self, z: np.ndarray) -> np.ndarray:

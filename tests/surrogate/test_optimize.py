@@ -133,3 +133,23 @@ def test_ucb_finds_the_reward_peak_with_earlier_decisions_fixed() -> None:
         ucb(fit.predictor, space, beta=0.01, fixed=fixed), space, fixed=fixed, exclude=seen, seed=0
     )
     assert found.x["grasp"] == "top" and abs(found.x["place"][0] - 0.4) < 0.15
+
+
+def test_children_of_a_flat_acquisition_fill_the_inside_of_the_box() -> None:
+    """Where the model cannot tell points apart (a flat surface, as before any data), the
+    margin rule's spread treats the walls as mirrors: the children of one node fill the box
+    like a space-filling design instead of sitting on its faces and corners."""
+    box = {"pose": ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0])}
+
+    def flat(cols: dict) -> np.ndarray:
+        return np.full(len(cols["pose"]), 0.3)
+
+    config = OptimizerConfig(margin=0.1, margin_abs=0.025)
+    children: list[dict] = []
+    for seed in range(24):
+        children.append(maximize(flat, box, exclude=children, seed=seed, config=config).x)
+    poses = np.array([child["pose"] for child in children])
+    near_a_wall = (np.minimum(poses, 1.0 - poses) < 0.05).any(axis=1)
+    assert near_a_wall.mean() < 0.25
+    middle = (np.abs(poses - 0.5) < 0.25).all(axis=1)
+    assert middle.sum() >= 2
