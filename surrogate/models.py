@@ -56,15 +56,35 @@ class PriorPredictor:
     infeasible: np.ndarray  # (b, D)
 
     def proba(self, z: np.ndarray) -> np.ndarray:
-        ell2 = (PRIOR_LENGTHSCALE**2) * z.shape[1]
+        return 0.5 + PRIOR_WEIGHT * (_reach(z, self.feasible) - _reach(z, self.infeasible))
 
-        def reach(points: np.ndarray) -> np.ndarray:
-            if len(points) == 0:
-                return np.zeros(len(z))
-            d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
-            return np.exp(-0.5 * d2 / ell2).max(axis=1)
 
-        return 0.5 + PRIOR_WEIGHT * (reach(self.feasible) - reach(self.infeasible))
+def _reach(z: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """`(n,)` the largest squared-exponential similarity of each row of `z` to `points`, with
+    the prior's lengthscale (`PRIOR_LENGTHSCALE * sqrt(D)`); 0 with no points."""
+    if len(points) == 0:
+        return np.zeros(len(z))
+    ell2 = (PRIOR_LENGTHSCALE**2) * z.shape[1]
+    d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
+    return np.exp(-0.5 * d2 / ell2).max(axis=1)
+
+
+@dataclass(frozen=True)
+class RecentPoints:
+    """A fitted predictor plus the points that arrived after its fit, as the stated prior
+    weighs them: P(feasible) falls next to a new infeasible point and rises next to a new
+    feasible one, until the next fit takes them in. Rollouts are cheaper than fits, so without
+    this a planner keeps being sent back to where it has just failed."""
+
+    base: FeasibilityPredictor
+    feasible: np.ndarray  # (a, D)
+    infeasible: np.ndarray  # (b, D)
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        p = self.base.proba(z)
+        up = PRIOR_WEIGHT * 2 * _reach(z, self.feasible)
+        down = PRIOR_WEIGHT * 2 * _reach(z, self.infeasible)
+        return p + (1.0 - p) * up * (1.0 - down) - p * down * (1.0 - up)
 
 
 @dataclass(frozen=True)

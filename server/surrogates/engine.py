@@ -29,7 +29,7 @@ from server.services.types import TrainingPoints, load_training_points
 from server.surrogates import fitproc
 from server.surrogates.pending import PendingBook
 from surrogate.encoding import Domain, SpaceEncoder
-from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, PriorPredictor
+from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, PriorPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 
 log = logging.getLogger("cpkb.surrogates")
@@ -49,7 +49,8 @@ class EngineConfig:
 
 @dataclass(frozen=True)
 class ModelHandle:
-    """What a request needs of one type: its decision space and current predictor."""
+    """What a request needs of one type: its decision space and current predictor (the latest
+    fit, with the points that arrived since weighed in: `surrogate.models.RecentPoints`)."""
 
     space: dict[str, Domain]
     predictor: FeasibilityPredictor
@@ -177,7 +178,12 @@ class SurrogateEngine:
             entry = self._load_new(key)
         elif time.monotonic() - entry.checked_at > self.config.refresh_s:
             self._catch_up(key, entry)
-        return ModelHandle(entry.space, entry.predictor, entry.n_points, entry.n_fitted)
+        with self._cond:
+            predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
+        if n_fitted < len(y):
+            recent, labels = z[n_fitted:], y[n_fitted:]
+            predictor = RecentPoints(predictor, recent[labels], recent[~labels])
+        return ModelHandle(entry.space, predictor, len(y), n_fitted)
 
     def _catch_up(self, key: Key, entry: _Entry) -> None:
         """A type in use whose points are older than `refresh_s`: load the new points (one

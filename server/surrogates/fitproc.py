@@ -12,14 +12,12 @@ import torch
 
 from surrogate.models import Fit, fit_classifier, warm_up
 
-FIT_NICENESS = 10
-
 
 def init_worker(threads: int) -> None:
     """Process initialiser: die with the server, leave the other core to it, pay the
-    first-fit cost now. Fits are background work, so the worker runs at a lower priority:
-    on a busy machine a waiting suggestion or planner rollout gets the core first."""
-    os.nice(FIT_NICENESS)
+    first-fit cost now. The worker keeps the normal priority: at a lower one, planners that
+    keep the cores busy starved it, and they were guided for hundreds of rollouts by fits
+    that knew none of their failures (`benchmarks/results/exploration/README.md`)."""
     parent = os.getppid()
     threading.Thread(target=_exit_when_orphaned, args=(parent,), daemon=True).start()
     torch.set_num_threads(threads)

@@ -99,3 +99,20 @@ def test_label_regression_variant_gives_probabilities() -> None:
     p = fit.predictor.proba(zt)
     assert fit.kind == "label-regression" and p.min() >= 0 and p.max() <= 1
     assert ((p > 0.5) == yt).mean() > 0.85
+
+
+def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
+    """Points that arrived after a fit lower P(feasible) next to a new failure and raise it
+    next to a new success, and leave it alone far from both."""
+    from surrogate.models import RecentPoints
+
+    z, y = half_space(60, 3)
+    fit = fit_classifier(z, y, seed=0, max_iters=60)
+    failed, passed, far = np.array([[0.9, 0.9, 0.5]]), np.array([[0.1, 0.1, 0.5]]), [0.9, 0.1, 0.0]
+    recent = RecentPoints(fit.predictor, feasible=passed, infeasible=failed)
+    probes = np.array([failed[0], passed[0], far])
+    before, after = fit.predictor.proba(probes), recent.proba(probes)
+    assert after[0] < 0.2 * before[0] and before[0] > 0.8
+    assert after[1] > before[1] + 0.5 * (1 - before[1]) and before[1] < 0.2
+    assert abs(after[2] - before[2]) < 0.05
+    assert ((after >= 0) & (after <= 1)).all()
