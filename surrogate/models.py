@@ -35,6 +35,8 @@ MAX_INDUCING = 128
 JITTER = 1e-6
 PRIOR_WEIGHT = 0.45  # how far the distance prior moves p away from 0.5 at an observed point
 PRIOR_LENGTHSCALE = 0.1  # per sqrt(D): the prior's reach in the unit cube
+RECENT_WEIGHT = 0.5  # how far a point not yet fitted moves p toward its label, at the point
+RECENT_LENGTHSCALE = 0.05  # per sqrt(D): its reach (half the prior's: a fit will follow)
 
 
 class FeasibilityPredictor(Protocol):
@@ -59,12 +61,12 @@ class PriorPredictor:
         return 0.5 + PRIOR_WEIGHT * (_reach(z, self.feasible) - _reach(z, self.infeasible))
 
 
-def _reach(z: np.ndarray, points: np.ndarray) -> np.ndarray:
+def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float = PRIOR_LENGTHSCALE) -> np.ndarray:
     """`(n,)` the largest squared-exponential similarity of each row of `z` to `points`, with
-    the prior's lengthscale (`PRIOR_LENGTHSCALE * sqrt(D)`); 0 with no points."""
+    lengthscale `lengthscale * sqrt(D)`; 0 with no points."""
     if len(points) == 0:
         return np.zeros(len(z))
-    ell2 = (PRIOR_LENGTHSCALE**2) * z.shape[1]
+    ell2 = (lengthscale**2) * z.shape[1]
     d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
     return np.exp(-0.5 * d2 / ell2).max(axis=1)
 
@@ -82,8 +84,8 @@ class RecentPoints:
 
     def proba(self, z: np.ndarray) -> np.ndarray:
         p = self.base.proba(z)
-        up = PRIOR_WEIGHT * 2 * _reach(z, self.feasible)
-        down = PRIOR_WEIGHT * 2 * _reach(z, self.infeasible)
+        up = RECENT_WEIGHT * _reach(z, self.feasible, RECENT_LENGTHSCALE)
+        down = RECENT_WEIGHT * _reach(z, self.infeasible, RECENT_LENGTHSCALE)
         return p + (1.0 - p) * up * (1.0 - down) - p * down * (1.0 - up)
 
 

@@ -112,7 +112,7 @@ def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
     recent = RecentPoints(fit.predictor, feasible=passed, infeasible=failed)
     probes = np.array([failed[0], passed[0], far])
     before, after = fit.predictor.proba(probes), recent.proba(probes)
-    assert after[0] < 0.2 * before[0] and before[0] > 0.8
-    assert after[1] > before[1] + 0.5 * (1 - before[1]) and before[1] < 0.2
+    assert after[0] < 0.6 * before[0] and before[0] > 0.8
+    assert after[1] > before[1] + 0.4 * (1 - before[1]) and before[1] < 0.2
     assert abs(after[2] - before[2]) < 0.05
     assert ((after >= 0) & (after <= 1)).all()
