@@ -28,7 +28,7 @@ type with few feasible points never predicts much above its base rate anywhere).
 HOPELESS_MIN_CHILDREN = 8
 """Only a node with this many children can be hopeless: a refit that lowers every prediction
 at once must not let every parent widen at every visit."""
-OUTLOOK_RATIO = 1.5
+OUTLOOK_RATIO = 1.25
 """At a node whose open children the knowledge base has rated (the P(feasible) of each child's
 latest proposal below it, its *outlook*), an untried value that is this many times as likely to
 be feasible as the best outlook opens at once instead of waiting for the PW law, and UCB selects
