@@ -90,6 +90,26 @@ class RecentPoints:
 
 
 @dataclass(frozen=True)
+class UnseenChoices:
+    """A fit answers for the choices of its categorical variables that its points hold; for a
+    choice that none of them has (a grasp the earlier tasks never tried), `prior` answers: the
+    fit's value there is an extrapolation to the type's base rate, which would rate an untried
+    grasp as badly as the ones that failed."""
+
+    base: FeasibilityPredictor
+    prior: FeasibilityPredictor
+    seen: tuple[tuple[slice, np.ndarray], ...]  # per categorical: its columns, the seen rows (k, w)
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        p = self.base.proba(z)
+        unseen = np.zeros(len(z), dtype=bool)
+        for columns, rows in self.seen:
+            same = np.abs(z[:, None, columns] - rows[None, :, :]).max(axis=-1) < 1e-9
+            unseen |= ~same.any(axis=1)
+        return np.where(unseen, self.prior.proba(z), p) if unseen.any() else p
+
+
+@dataclass(frozen=True)
 class VGPPredictor:
     """Cached predictive terms of a whitened variational GP: mean = c + K_xz a,
     var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var))."""

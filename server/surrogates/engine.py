@@ -29,7 +29,14 @@ from server.services.types import TrainingPoints, load_training_points
 from server.surrogates import fitproc
 from server.surrogates.pending import PendingBook
 from surrogate.encoding import Domain, SpaceEncoder
-from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, PriorPredictor, RecentPoints
+from surrogate.models import (
+    MIN_POINTS,
+    FeasibilityPredictor,
+    Fit,
+    PriorPredictor,
+    RecentPoints,
+    UnseenChoices,
+)
 from surrogate.optimize import OptimizerConfig
 
 log = logging.getLogger("cpkb.surrogates")
@@ -81,6 +88,17 @@ class _Entry:
 
 def _prior(z: np.ndarray, y: np.ndarray) -> PriorPredictor:
     return PriorPredictor(feasible=z[y], infeasible=z[~y])
+
+
+def _seen_choices(encoder: SpaceEncoder, z: np.ndarray) -> tuple[tuple[slice, np.ndarray], ...]:
+    """Per categorical variable of the encoding: its columns and the distinct rows of `z` there
+    (the choices the fitted points hold)."""
+    seen = []
+    for var in encoder.vars:
+        if var.table is not None:
+            columns = slice(var.start, var.start + var.width)
+            seen.append((columns, np.unique(z[:, columns], axis=0)))
+    return tuple(seen)
 
 
 def _needs_model(y: np.ndarray) -> bool:
@@ -180,9 +198,14 @@ class SurrogateEngine:
             self._catch_up(key, entry)
         with self._cond:
             predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
+            fitted = entry.fit is not None and entry.status == "ready"
         if n_fitted < len(y):
             recent, labels = z[n_fitted:], y[n_fitted:]
             predictor = RecentPoints(predictor, recent[labels], recent[~labels])
+        if fitted:
+            seen = _seen_choices(entry.encoder, z[:n_fitted])
+            if seen:
+                predictor = UnseenChoices(predictor, _prior(z, y), seen)
         return ModelHandle(entry.space, predictor, len(y), n_fitted)
 
     def _catch_up(self, key: Key, entry: _Entry) -> None:

@@ -116,3 +116,27 @@ def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
     assert after[1] > before[1] + 0.4 * (1 - before[1]) and before[1] < 0.2
     assert abs(after[2] - before[2]) < 0.05
     assert ((after >= 0) & (after <= 1)).all()
+
+
+def test_a_choice_no_point_holds_gets_the_prior_not_the_fits_extrapolation() -> None:
+    from client.models import CategoricalDomain, ContinuousDomain
+    from surrogate.encoding import SpaceEncoder
+    from surrogate.models import UnseenChoices
+
+    space = {
+        "d": CategoricalDomain(choices=["front", "right", "top"]),
+        "p": ContinuousDomain(low=[0.0], high=[1.0]),
+    }
+    encoder = SpaceEncoder(space)
+    rng = np.random.default_rng(0)
+    points = [{"d": "right", "p": [float(v)]} for v in rng.random(40)]
+    z = encoder.encode_points(points)
+    y = z[:, -1] > 0.8  # rarely feasible: the fit's base rate is low
+    fit = fit_classifier(z, y, seed=0, max_iters=60)
+    prior = PriorPredictor(feasible=z[y], infeasible=z[~y])
+    columns = slice(0, 3)
+    guarded = UnseenChoices(fit.predictor, prior, ((columns, np.unique(z[:, columns], axis=0)),))
+    right = encoder.encode_points([{"d": "right", "p": [0.3]}])
+    front = encoder.encode_points([{"d": "front", "p": [0.3]}])
+    assert guarded.proba(right)[0] == fit.predictor.proba(right)[0] < 0.3
+    assert guarded.proba(front)[0] == prior.proba(front)[0] > 0.45
