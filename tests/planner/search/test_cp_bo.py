@@ -16,7 +16,7 @@ import pytest
 from client import CpkbClient
 from planner.run import run_plan
 
-SEEDS = range(3)
+SEEDS = range(10)
 
 
 def wait_for_fits(client: CpkbClient, kb: str, timeout: float = 60.0) -> None:
