@@ -21,7 +21,7 @@ BATCH = 4
 """Points per suggestion request: a node's next expansions come from one answer. A fit takes
 longer than a few rollouts, so successive requests would mostly see the same model; the batch
 is spread like successive answers would be, and costs one request instead of `BATCH`."""
-BATCH_MAX_AGE = 20
+BATCH_MAX_AGE = 8
 """Rollouts after which a node's batch is asked for anew, so that it follows the refits."""
 
 NodeKey = tuple[str, tuple[tuple[str, object], ...]]
