@@ -4,6 +4,9 @@ Each rollout descends from the root: at a decision node it adds a visit, then ei
 new child (the sampler proposes a value and the world runs the following transition layer) or
 selects an open child by UCB. A rollout ends at a failed transition (reward `0.1 d/D`) or at a
 full binding list that passed every transition (reward `1.1`); the reward is backed up by max.
+With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
+rated well above its children's outlook, and UCB keeps to the children with the best outlook
+(`tree.OUTLOOK_RATIO`).
 """
 
 from __future__ import annotations
