@@ -35,6 +35,8 @@ be feasible as the best outlook opens at once instead of waiting for the PW law,
 only among children within this factor of the best outlook: a grasp that no placement can
 follow, or a box placed where the next box has no room, loses the search to a value that the
 knowledge base expects to work."""
+OUTLOOK_FREE_EVERY = 4
+"""Every this many visits a node selects by plain UCB, whatever the outlooks: completeness."""
 
 
 @dataclass(eq=False)
@@ -186,12 +188,15 @@ def ucb_select(
 ) -> ChildNode | None:
     """The open child maximising `reward + c sqrt(ln N / n)`; None when all are closed.
     With `outlook_ratio`, a node whose open children are all rated selects only among those
-    within that factor of the best outlook. Ties go to the earliest child, so selection is
-    deterministic."""
+    within that factor of the best outlook, except at every `OUTLOOK_FREE_EVERY`-th visit: a
+    subtree whose outlook stays high while it keeps failing (a failure the knowledge base does
+    not model, or a model that does not learn it) must not keep the others from being reached.
+    Ties go to the earliest child, so selection is deterministic."""
     best: ChildNode | None = None
     best_score = -math.inf
     log_n = math.log(max(node.visits, 1))
-    best_outlook = outlook(node) if outlook_ratio else None
+    guided = outlook_ratio and node.visits % OUTLOOK_FREE_EVERY != 0
+    best_outlook = outlook(node) if guided else None
     for child in node.children:
         if child.closed:
             continue

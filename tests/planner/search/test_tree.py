@@ -268,3 +268,18 @@ def test_search_leaves_a_choice_whose_outlook_fell_for_an_untried_one():
     guided = OutlookSampler()
     assert top_visits(guided, 1.5) < 10 < top_visits(OutlookSampler(), math.inf)
     assert guided.untried_asked > 0
+
+
+def test_every_few_visits_selection_ignores_the_outlook():
+    from planner.search.tree import OUTLOOK_FREE_EVERY
+
+    n = node(CategoricalDomain(choices=["a", "b", "c"]))
+    low = add_child(n, "a", visits=1, r=0.075)
+    high = add_child(n, "b", visits=9, r=0.075)
+    note_proposal(low.next, 0.01)
+    note_proposal(high.next, 0.5)
+    picks = []
+    for visits in range(1, 3 * OUTLOOK_FREE_EVERY + 1):
+        n.visits = visits
+        picks.append(ucb_select(n, outlook_ratio=1.25))
+    assert picks.count(low) == 3 and picks.count(high) == 3 * OUTLOOK_FREE_EVERY - 3
