@@ -32,9 +32,8 @@ from planner.search.tree import (
     backup,
     check_alternating,
     close,
+    comparable_outlook,
     note_proposal,
-    outlook,
-    outlook_check_due,
     reward,
     ucb_select,
     widens,
@@ -186,13 +185,13 @@ class PWUCT:
     def _better_untried(self, node: DecisionNode) -> Proposal | None:
         """The sampler's best untried value, if the knowledge base rates it `outlook_ratio`
         times above every open child's outlook (see `tree.OUTLOOK_RATIO`)."""
-        if not outlook_check_due(node):
+        best = comparable_outlook(node)
+        if best is None:
             return None
         started = time.perf_counter()
         proposal = self.sampler.propose_untried(self._context(node))
         self.sample_s += time.perf_counter() - started
-        best = outlook(node)
-        if proposal is None or best is None or proposal.p_feasible <= self.outlook_ratio * best:
+        if proposal is None or proposal.p_feasible <= self.outlook_ratio * best:
             return None
         return proposal
 

@@ -177,10 +177,10 @@ def outlook(node: DecisionNode) -> float | None:
     return best
 
 
-def outlook_check_due(node: DecisionNode) -> bool:
-    """Whether an untried value of `node` can be compared with its open children: values left
-    and every open child rated."""
-    return not node.exhausted and outlook(node) is not None
+def comparable_outlook(node: DecisionNode) -> float | None:
+    """The outlook an untried value of `node` is compared with: None unless values are left
+    and every open child is rated."""
+    return None if node.exhausted else outlook(node)
 
 
 def ucb_select(

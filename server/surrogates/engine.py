@@ -80,6 +80,7 @@ class _Entry:
     fitted_at: datetime | None = None
     error: str | None = None
     merging: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    seen: tuple[tuple[slice, np.ndarray], ...] = ()  # the fit's categorical choices (UnseenChoices)
 
     @property
     def n_points(self) -> int:
@@ -199,13 +200,12 @@ class SurrogateEngine:
         with self._cond:
             predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
             fitted = entry.fit is not None and entry.status == "ready"
+            seen = entry.seen
         if n_fitted < len(y):
             recent, labels = z[n_fitted:], y[n_fitted:]
             predictor = RecentPoints(predictor, recent[labels], recent[~labels])
-        if fitted:
-            seen = _seen_choices(entry.encoder, z[:n_fitted])
-            if seen:
-                predictor = UnseenChoices(predictor, _prior(z, y), seen)
+        if fitted and seen:
+            predictor = UnseenChoices(predictor, _prior(z, y), seen)
         return ModelHandle(entry.space, predictor, len(y), n_fitted)
 
     def _catch_up(self, key: Key, entry: _Entry) -> None:
@@ -337,8 +337,9 @@ class SurrogateEngine:
         fit = self._fit(z, y, warm)
         self.fits += 1
         _record_fit(fit.fit_seconds, n)
+        seen = _seen_choices(entry.encoder, z[:n])
         with self._cond:
-            entry.fit, entry.predictor = fit, fit.predictor
+            entry.fit, entry.predictor, entry.seen = fit, fit.predictor, seen
             entry.n_fitted, entry.status, entry.error = n, "ready", None
             entry.fitted_at = datetime.now(UTC)
 

@@ -25,11 +25,12 @@ BATCH_MAX_AGE = 8
 """Rollouts after which a node's batch is asked for anew, so that it follows the refits."""
 
 NodeKey = tuple[str, tuple[tuple[str, object], ...]]
+Signature = tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # the node's (type, bind) pairs
 
 
 @dataclass
 class _Batch:
-    constraints: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]
+    constraints: Signature
     proposals: list[Proposal]
     rollout: int
 
@@ -91,7 +92,7 @@ class CpBoSampler:
         self,
         ctx: SampleContext,
         constraints: list[Constraint],
-        signature: tuple[tuple[str, tuple[tuple[str, str], ...]], ...],
+        signature: Signature,
     ) -> _Batch | None:
         seed = int(ctx.rng.integers(2**31 - 1))
         answer = self.knowledge.suggest(

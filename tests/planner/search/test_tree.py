@@ -16,10 +16,10 @@ from planner.search.tree import (
     DecisionNode,
     backup,
     close,
+    comparable_outlook,
     mark_hopeless,
     note_proposal,
     outlook,
-    outlook_check_due,
     reward,
     ucb_select,
     widens,
@@ -229,14 +229,14 @@ def test_selection_keeps_to_children_within_the_outlook_ratio_of_the_best():
     assert ucb_select(n, outlook_ratio=1.5) is trap
 
 
-def test_an_outlook_check_is_due_while_values_are_left_and_children_are_rated():
+def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
     n = node(CategoricalDomain(choices=["a", "b"]))
     child = add_child(n, "a")
-    assert not outlook_check_due(n)  # its child is not rated yet
+    assert comparable_outlook(n) is None  # its child is not rated yet
     note_proposal(child.next, 0.1)
-    assert outlook_check_due(n)
+    assert comparable_outlook(n) == 0.1
     add_child(n, "b", FAIL)
-    assert not outlook_check_due(n)  # exhausted
+    assert comparable_outlook(n) is None  # exhausted
 
 
 class OutlookSampler(QuasiRandomSampler):
