@@ -31,6 +31,8 @@ from client.models import (
     KnowledgeBaseIn,
     MatchIn,
     MatchResult,
+    ModelsIn,
+    ModelsOut,
     PointIn,
     PointOut,
     PointResult,
@@ -225,6 +227,13 @@ class CpkbClient:
         """The MPF suggestion for a search space (see SuggestIn); safe to retry (reads only)."""
         model = request if isinstance(request, SuggestIn) else SuggestIn.model_validate(request)
         return self._call(SuggestOut, "POST", f"/v1/kbs/{kb}/suggest", json=self._body(model))
+
+    def models(
+        self, kb: str, type_ids: Iterable[str], known: Mapping[str, str] | None = None
+    ) -> ModelsOut:
+        """The current predictors of these types (minus those still at a `known` version)."""
+        body = self._body(ModelsIn(type_ids=list(type_ids), known=dict(known or {})))
+        return self._call(ModelsOut, "POST", f"/v1/kbs/{kb}/models", json=body)
 
     def predict(self, kb: str, type_id: str, xs: Iterable[Mapping[str, Any]]) -> list[float]:
         """P(feasible) of each x (decision label -> value) under the type's surrogate."""

@@ -239,6 +239,35 @@ class SuggestOut(BaseModel):
     batch: list[SuggestedPoint] = Field(default_factory=list)
 
 
+class ModelsIn(_Strict):
+    """`known` maps a type to the version of its model the caller holds: the answer leaves
+    those types out unless their model has changed since."""
+
+    type_ids: list[Label] = Field(min_length=1, max_length=64)
+    known: dict[Label, str] = Field(default_factory=dict)
+
+
+class ModelSnapshot(BaseModel):
+    """A type's current predictor (`surrogate.snapshot` JSON), with what it was fitted on: a
+    planner evaluates MPF with it in its own process, as `suggest` would with no point pending.
+    `version` names the fit (it changes when a fit lands, not when points arrive: the points
+    stored since the fit are in `predictor`, and a planner adds its own newer ones itself)."""
+
+    type_id: str
+    version: str
+    space: dict[str, Domain]
+    n_points: int
+    n_fitted: int
+    predictor: dict[str, Any]
+
+
+class ModelsOut(BaseModel):
+    """The changed models, and the optimiser settings the service's own `suggest` uses."""
+
+    models: list[ModelSnapshot]
+    optimizer: dict[str, float | int | bool]
+
+
 class Health(BaseModel):
     model_config = ConfigDict(extra="allow")
 

@@ -39,6 +39,9 @@ class Progress:
     elapsed_s: float
 
 
+SUGGEST_IN = ("planner", "service")
+
+
 @dataclass
 class PlanResult:
     task: str
@@ -58,6 +61,8 @@ class PlanResult:
     types_active: int = 0
     points_posted: int = 0
     suggestions: int = 0
+    local_suggestions: int = 0
+    model_fetches: int = 0
     kb_errors: int = 0
     kb: str | None = None
     run: str | None = None
@@ -124,16 +129,21 @@ def run_plan(
     gui: bool = False,
     worker: str | None = None,
     db_url: str | None = None,
+    suggest_in: str = "planner",
 ) -> PlanResult:
     """Search bindings for `task` with `method` until the first feasible binding list (or, with
     `stop_at_first=False`, through the whole budget). `quiet=False` with no `progress` callback
-    draws a progress line on stderr."""
+    draws a progress line on stderr. `suggest_in`: where MPF is maximised, in this process from
+    the service's model snapshots (`planner`) or by the service (`service`, which also pushes
+    concurrent planners of one knowledge base apart)."""
     if method not in sampler_registry.methods():
         raise ValueError(
             f"unknown method {method!r}; known: {', '.join(sampler_registry.methods())}"
         )
     if max_rollouts < 1:
         raise ValueError("max_rollouts must be at least 1")
+    if suggest_in not in SUGGEST_IN:
+        raise ValueError(f"suggest_in must be one of {', '.join(SUGGEST_IN)}, not {suggest_in!r}")
     options = {
         "max_rollouts": max_rollouts,
         "kb_url": kb_url,
@@ -143,6 +153,7 @@ def run_plan(
         "gui": gui,
         "worker": worker,
         "db_url": db_url,
+        "suggest_in": suggest_in,
     }
     if not quiet and progress is None:
         from planner.display import live_progress
@@ -167,6 +178,7 @@ def _plan(
     gui: bool,
     worker: str | None,
     db_url: str | None,
+    suggest_in: str,
 ) -> PlanResult:
     seed_everything(seed)
     started = time.perf_counter()
@@ -201,6 +213,7 @@ def _plan(
             token=token,
             worker=worker,
             db_url=db_url,
+            suggest_in=suggest_in,
         )
     finally:
         if world is not task:
@@ -223,6 +236,7 @@ def _plan_with_knowledge(
     token: str | None,
     worker: str | None,
     db_url: str | None,
+    suggest_in: str,
 ) -> PlanResult:
     from client import CpkbClient
     from planner.knowledge import KnowledgeSession
@@ -230,7 +244,11 @@ def _plan_with_knowledge(
     with knowledge_service(kb_url, db_url) as url, CpkbClient(url, token=token) as client:
         client.create_kb(kb, exist_ok=True)
         session = KnowledgeSession(
-            client, kb, world, worker=worker or f"{socket.gethostname()}:{os.getpid()}"
+            client,
+            kb,
+            world,
+            worker=worker or f"{socket.gethostname()}:{os.getpid()}",
+            local=suggest_in == "planner",
         )
         sampler = sampler_registry.make(method, seed=seed, world=world, knowledge=session)
         try:
@@ -256,6 +274,8 @@ def _plan_with_knowledge(
         result.types_active = stats.types_active
         result.points_posted = session.points_posted
         result.suggestions = stats.suggestions
+        result.local_suggestions = stats.local_suggestions
+        result.model_fetches = stats.model_fetches
         result.kb_errors = stats.errors + session.poster.failed
         result.kb = kb
         result.run = session.run

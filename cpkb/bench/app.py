@@ -31,6 +31,7 @@ class BenchSettings:
     out_dir: str | Path
     kb_url: str | None = None
     token: str | None = None
+    suggest_in: str = "planner"
     max_rollouts: int = 2000
     predecessor_rollouts: int = 30
     time_limit_s: float | None = None
@@ -164,11 +165,10 @@ def run_command(settings: BenchSettings, run_fn: RunFn | None = None) -> int:
         return 0
     check_request(settings)
     if run_fn is None:
-        run_fn = (
-            plan_run
-            if settings.token is None
-            else functools.partial(plan_run, token=settings.token)
+        options = {"suggest_in": settings.suggest_in} | (
+            {"token": settings.token} if settings.token is not None else {}
         )
+        run_fn = functools.partial(plan_run, **options)
     outcome = execute_bench(settings, run_fn, console)
     console.print(
         f"{outcome.finished} runs finished, {outcome.skipped} already done, "

@@ -87,6 +87,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "bench on a temporary SQLite file (a fresh knowledge base per scenario either way)",
     )
     parser.add_argument("--token", default=None, help="access token (default: CPKB_TOKEN)")
+    parser.add_argument(
+        "--suggest-in",
+        choices=("planner", "service"),
+        default="planner",
+        help="where cp-bo maximises MPF: in each planner from the service's model snapshots "
+        "(default), or in the service",
+    )
     parser.add_argument("--max-rollouts", type=_positive_int, default=2000)
     parser.add_argument("--predecessor-rollouts", type=_positive_int, default=30)
     parser.add_argument(
@@ -117,6 +124,7 @@ def handle(args: argparse.Namespace) -> int:
         out_dir=args.out,
         kb_url=args.kb_url,
         token=token,
+        suggest_in=args.suggest_in,
         max_rollouts=args.max_rollouts,
         predecessor_rollouts=args.predecessor_rollouts,
         time_limit_s=args.time_limit,

@@ -30,6 +30,13 @@ def register(subparsers: Any) -> None:
     plan.add_argument("--kb-url", help="knowledge-base service URL (default: an embedded one)")
     plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")
     plan.add_argument("--token", help="access token (default: CPKB_TOKEN)")
+    plan.add_argument(
+        "--suggest-in",
+        choices=("planner", "service"),
+        default="planner",
+        help="where cp-bo maximises MPF: here, from the service's model snapshots (default), "
+        "or in the service (which also pushes planners sharing a knowledge base apart)",
+    )
     plan.add_argument("--gui", action="store_true", help="show the PyBullet GUI")
     plan.add_argument("--json", action="store_true", help="print the result as JSON (last line)")
     plan.add_argument("--quiet", action="store_true", help="no progress display")
@@ -86,6 +93,7 @@ def _plan(args: argparse.Namespace) -> int:
         token=token,
         stop_at_first=not args.full_budget,
         gui=args.gui,
+        suggest_in=args.suggest_in,
     )
     result = _run(args, quiet=args.json or args.quiet, **options)
     if args.json:

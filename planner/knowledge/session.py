@@ -26,6 +26,7 @@ from client.models import (
     Constraint,
     Graph,
     MatchResult,
+    ModelsOut,
     PointIn,
     Source,
     SuggestIn,
@@ -33,6 +34,7 @@ from client.models import (
     Value,
 )
 from planner.failures import FailureGraph, failure_graph
+from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
 from planner.world import BindingWorld, CheckResult, TransitionOutcome
@@ -46,6 +48,10 @@ class KnowledgeClient(Protocol):
     def match_types(self, kb: str, graphs: Sequence[Graph]) -> list[MatchResult]: ...
 
     def suggest(self, kb: str, request: SuggestIn) -> SuggestOut: ...
+
+    def models(
+        self, kb: str, type_ids: Sequence[str], known: dict[str, str] | None = None
+    ) -> ModelsOut: ...
 
 
 MATCH_CHUNK = 500  # graphs per types/match request (the contract allows up to 1000)
@@ -73,6 +79,8 @@ class KnowledgeStats:
     points_activated: int = 0
     types_active: int = 0
     suggestions: int = 0
+    local_suggestions: int = 0  # of `suggestions`, answered in this process
+    model_fetches: int = 0
     kb_s: float = 0.0
     errors: int = 0
     prematched: int = 0
@@ -96,6 +104,7 @@ class KnowledgeSession:
         worker: str | None = None,
         background: bool = True,
         lookahead: bool = True,
+        local: bool = True,
     ) -> None:
         self.client = client
         self.lookahead = lookahead
@@ -109,8 +118,13 @@ class KnowledgeSession:
         self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
         self._graphs: dict[Key, FailureGraph] = {}
         self._active: dict[Key, Activation] = {}
-        self._by_check: dict[tuple[int, int], list[Activation]] = {}
-        self._pending: list[tuple[FailureGraph, dict[str, Value], bool]] = []
+        self._by_check: dict[tuple[int, int], list[tuple[Key, Activation]]] = {}
+        self._pending: list[tuple[Key, FailureGraph, dict[str, Value], bool]] = []
+        self.local = (
+            LocalSurrogates(lambda ids, known: client.models(kb, ids, known))
+            if local and hasattr(client, "models")
+            else None
+        )
         self._unmatched: dict[Key, FailureGraph] = {}
         self._types: set[str] = set()
         self._rollout = 0
@@ -177,7 +191,7 @@ class KnowledgeSession:
         stored_with = 0 if result.exists else self.poster.submitted + 1
         activation = Activation(result.type_id, fg, transferred, result.n_points, stored_with)
         self._active[key] = activation
-        self._by_check.setdefault(fg.check, []).append(activation)
+        self._by_check.setdefault(fg.check, []).append((key, activation))
         if result.type_id in self._types:
             return  # the same type at one more check: counted once
         self._types.add(result.type_id)
@@ -194,16 +208,16 @@ class KnowledgeSession:
         self._rollout = rollout
         for position, check in enumerate(outcome.checks):
             if check.ok:
-                for activation in self._by_check.get((index, position), ()):
+                for key, activation in self._by_check.get((index, position), ()):
                     x = activation.failure.x(bindings)
-                    self._pending.append((activation.failure, x, True))
+                    self._pending.append((key, activation.failure, x, True))
                 continue
             culprit = check.culprits[0].body if check.culprits else None
             key = (index, position, culprit)
             fg = self._graph(key, index, check, culprit)
             if not fg.bind:
                 continue
-            self._pending.append((fg, fg.x(bindings), False))
+            self._pending.append((key, fg, fg.x(bindings), False))
             if key not in self._active:
                 self._unmatched[key] = fg
 
@@ -220,10 +234,14 @@ class KnowledgeSession:
                 source=source,
                 key=f"{self.run}:{rollout}:{i}",
             )
-            for i, (fg, x, feasible) in enumerate(self._pending)
+            for i, (_, fg, x, feasible) in enumerate(self._pending)
         ]
+        batch = self.poster.submit(points)
+        if self.local is not None:
+            for key, _, x, feasible in self._pending:
+                if key in self._active:
+                    self.local.note(self._active[key].type_id, x, feasible, batch)
         self._pending = []
-        self.poster.submit(points)
 
     # -- guiding the search -------------------------------------------------------------------
 
@@ -276,13 +294,34 @@ class KnowledgeSession:
         )
         started = time.perf_counter()
         try:
-            answer = self.client.suggest(self.kb, request)
+            answer = self._suggest_locally(request)
+            if answer is None:
+                answer = self.client.suggest(self.kb, request)
         except Exception as exc:  # fall back to space filling rather than stop the search
             self.stats.event(f"suggest failed: {exc}")
             return None
         finally:
             self.stats.kb_s += time.perf_counter() - started
         self.stats.suggestions += 1
+        return answer
+
+    def _suggest_locally(self, request: SuggestIn) -> SuggestOut | None:
+        """The answer from this process's copies of the models; None (ask the service, which
+        says what is wrong) when that fails."""
+        if self.local is None:
+            return None
+        fetches = self.local.fetches
+        try:
+            answer = self.local.suggest(request, self._rollout, self.poster.done)
+        except Exception as exc:
+            # The service answers from here on: it says what was wrong with a request, and a
+            # service without snapshots (an older version) is not asked again.
+            self.stats.event(f"local suggestion failed, the service answers instead: {exc}")
+            self.local = None
+            return None
+        finally:
+            self.stats.model_fetches += self.local.fetches - fetches
+        self.stats.local_suggestions += 1
         return answer
 
     def close(self) -> None:

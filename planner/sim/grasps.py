@@ -91,6 +91,17 @@ def make_grasp(scene: Scene, body: str, direction: str, body_pose: Pose) -> Gras
     return Grasp(body, direction, tcp, tuple(float(v) for v in approach_local), opening)  # type: ignore[arg-type]
 
 
+def hand_heading(grasp: Grasp) -> float:
+    """The heading (radians, about the body's z) in which the hand points in the body's frame:
+    the approach of a side grasp, the forward axis of a top grasp's hand. A body placed with yaw
+    `theta - hand_heading(grasp)` has the hand pointing at `theta` whichever face it holds."""
+    x, y, z = grasp.approach_in_body
+    if abs(z) < 0.5:
+        return math.atan2(y, x)
+    forward = rotation(grasp.tcp_in_body[1])[:, 0]
+    return math.atan2(float(forward[1]), float(forward[0]))
+
+
 def rolled(grasp: Grasp) -> Grasp:
     """The same side grasp with the hand turned half a turn about its approach axis."""
     pos, orn = grasp.tcp_in_body

@@ -18,6 +18,7 @@ from planner.sim.grasps import (
     Grasp,
     GraspError,
     carried_pose,
+    hand_heading,
     make_grasp,
     rolled,
     solve_ik,
@@ -133,10 +134,16 @@ def first_guess(scene: Scene, target: Pose) -> tuple[float, ...]:
 
 
 def _body_pose(ex: Execution, body: str, pose_arg: str) -> tuple[Pose, str]:
+    """Where `pose_arg` puts `body`: a held body by the hand's heading (`Scene.region_pose`);
+    a body already standing at a decided pose, where it actually stands."""
     if pose_arg.startswith("#"):
         owner, region = ex.pose_sources[pose_arg]
         seed = ex.bindings[pose_arg]
-        return ex.scene.region_pose(owner, region, seed), region  # type: ignore[arg-type]
+        if ex.held is not None and ex.held.body == owner:
+            heading = hand_heading(ex.held)
+            return ex.scene.region_pose(owner, region, seed, heading), region  # type: ignore[arg-type]
+        position, _ = ex.scene.region_pose(owner, region, seed)  # type: ignore[arg-type]
+        return (position, ex.scene.pose(owner)[1]), region
     named = ex.scene.task.workspace.poses[pose_arg]
     return ex.scene.named_pose(pose_arg, body), named.region
 

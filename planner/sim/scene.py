@@ -133,9 +133,15 @@ class Scene:
         named: NamedPose = self.task.workspace.poses[pose]
         return self.standing_pose(body, self.region(named.region), *named.xy, named.yaw)
 
-    def region_pose(self, body: str, region_name: str, seed: Iterable[float]) -> Pose:
+    def region_pose(
+        self, body: str, region_name: str, seed: Iterable[float], heading: float = 0.0
+    ) -> Pose:
         """Map a seed in [0,1]^3 to a standing pose in the region, as the authors do: x and y in
-        the region's box shrunk by half the body's footprint, yaw in [-pi, pi]."""
+        the region's box shrunk by half the body's footprint, yaw in [-pi, pi]. The yaw is that
+        of the frame `heading` turns the body's frame by: a held body is placed by the hand's
+        heading (see `grasps.hand_heading`), so that the feasible yaws of every grasp, and of
+        every face the hand holds, are one band of the seed, and knowledge about one transfers
+        to the others."""
         sx, sy, syaw = (min(1.0, max(0.0, float(v))) for v in seed)
         region = self.region(region_name)
         margin = max(self.sizes[body][:2]) / 2
@@ -144,7 +150,8 @@ class Scene:
         local = ((2 * sx - 1) * half_x, (2 * sy - 1) * half_y, 0.0)
         frame = ((region.center[0], region.center[1], 0.0), yaw_quat(region.yaw))
         (x, y, _), _ = compose(frame, (local, (0.0, 0.0, 0.0, 1.0)))
-        return self.standing_pose(body, region, x, y, region.yaw + (2 * syaw - 1) * math.pi)
+        yaw = region.yaw + (2 * syaw - 1) * math.pi - heading
+        return self.standing_pose(body, region, x, y, yaw)
 
     def in_region(self, body: str, region_name: str, tolerance: float = 3e-3) -> bool:
         region = self.region(region_name)

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request
 
-from client.models import PredictIn, PredictOut, SuggestIn, SuggestOut
+from client.models import ModelsIn, ModelsOut, PredictIn, PredictOut, SuggestIn, SuggestOut
 from server.errors import Unavailable
 from server.surrogates import service
 from server.surrogates.engine import SurrogateEngine
@@ -29,6 +29,13 @@ def suggest(kb: str, body: SuggestIn, engine: EngineDep) -> SuggestOut:
     """The point of `space` maximising min_i P(constraint i feasible), fixed variables applied,
     never an excluded point, away from suggestions still pending."""
     return service.suggest(engine, kb, body)
+
+
+@router.post("/models")
+def models(kb: str, body: ModelsIn, engine: EngineDep) -> ModelsOut:
+    """Each type's current predictor, for MPF in the caller's own process; types whose
+    version the caller already holds (`known`) are left out."""
+    return service.models(engine, kb, body)
 
 
 @router.post("/types/{type_id}/predict")

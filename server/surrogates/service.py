@@ -6,17 +6,27 @@ SpaceExhausted (a finite space wholly excluded) is a 409.
 
 from __future__ import annotations
 
+import dataclasses
 import secrets
 
-import numpy as np
-
-from client.models import PredictIn, PredictOut, SuggestedPoint, SuggestIn, SuggestOut
+from client.models import (
+    ModelsIn,
+    ModelSnapshot,
+    ModelsOut,
+    PredictIn,
+    PredictOut,
+    SuggestedPoint,
+    SuggestIn,
+    SuggestOut,
+)
 from server.errors import Conflict, InvalidInput
 from server.services.kbs import kb_id
 from server.surrogates.engine import ModelHandle, SurrogateEngine
-from surrogate.acquisition import MPF, ConstraintTerm
+from surrogate import snapshot
+from surrogate.acquisition import ConstraintTerm
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
-from surrogate.optimize import SpaceExhausted, maximize_batch, space_filling
+from surrogate.optimize import SpaceExhausted, space_filling
+from surrogate.suggest import mpf_points
 
 
 def _check_binding(i: int, type_id: str, handle: ModelHandle, body: SuggestIn) -> None:
@@ -75,34 +85,28 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     seed = body.seed if body.seed is not None else secrets.randbits(31)
     try:
         if terms:
-            mpf = MPF(terms)
-            found = maximize_batch(
-                mpf,
+            points = mpf_points(
+                terms,
                 body.space,
                 fixed=body.fixed,
                 exclude=body.exclude,
                 pending=pending,
+                lookahead=body.lookahead,
                 seed=seed,
                 config=engine.config.optimizer,
                 n=body.n,
-                distinct=[var for var in body.space if var not in body.lookahead],
             )
-            xs = [s.x for s in found]
-            per_term = mpf.per_term(SpaceEncoder(body.space).columns(xs))
         else:
-            xs = [
-                space_filling(
-                    body.space, fixed=body.fixed, exclude=body.exclude, pending=pending, seed=seed
-                )
-            ]
-            per_term = np.zeros((0, 1))
+            x = space_filling(
+                body.space, fixed=body.fixed, exclude=body.exclude, pending=pending, seed=seed
+            )
+            points = [SuggestedPoint(x=x, mpf=0.5, p_feasible={})]
     except EncodingError as exc:
         raise InvalidInput(str(exc)) from exc
     except SpaceExhausted as exc:
         raise Conflict(f"exclude: {exc}") from exc
-    points = [_point(x, terms, per_term[:, i]) for i, x in enumerate(xs)]
-    for point in points:
-        proposed = {var: value for var, value in point.x.items() if var not in body.lookahead}
+    for answer in points:
+        proposed = {var: value for var, value in answer.x.items() if var not in body.lookahead}
         engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
     first = points[0]
     return SuggestOut(
@@ -116,15 +120,6 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     )
 
 
-def _point(x: dict, terms: list[ConstraintTerm], per_term: np.ndarray) -> SuggestedPoint:
-    """One answer point: each type's P(feasible) (a type bound twice: its lower one), and MPF."""
-    p_feasible: dict[str, float] = {}
-    for term, p in zip(terms, per_term, strict=True):
-        p_feasible[term.name] = min(float(p), p_feasible.get(term.name, 1.0))
-    mpf = min(p_feasible.values()) if p_feasible else 0.5
-    return SuggestedPoint(x=x, mpf=mpf, p_feasible=p_feasible)
-
-
 def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> PredictOut:
     """P(feasible) of each x (decision label -> value) under the type's current surrogate."""
     handle = engine.model(kb, type_id)
@@ -134,3 +129,27 @@ def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> 
     except EncodingError as exc:
         raise InvalidInput(str(exc)) from exc
     return PredictOut(p_feasible=[float(p) for p in handle.predictor.proba(z)])
+
+
+def models(engine: SurrogateEngine, kb: str, body: ModelsIn) -> ModelsOut:
+    """The current predictor of each type asked for whose version (its fit: `n_fitted`)
+    differs from `known`. The points stored since that fit are in the predictor
+    (`RecentPoints`), but do not change the version: a caller weighs in its own new points
+    itself, and needs a snapshot again only once a fit has taken them in."""
+    changed: list[ModelSnapshot] = []
+    for type_id in dict.fromkeys(body.type_ids):
+        handle = engine.model(kb, type_id)
+        version = str(handle.n_fitted)
+        if body.known.get(type_id) == version:
+            continue
+        changed.append(
+            ModelSnapshot(
+                type_id=type_id,
+                version=version,
+                space=handle.space,
+                n_points=handle.n_points,
+                n_fitted=handle.n_fitted,
+                predictor=snapshot.dump(handle.predictor),
+            )
+        )
+    return ModelsOut(models=changed, optimizer=dataclasses.asdict(engine.config.optimizer))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -9,7 +10,8 @@ import numpy as np
 import pytest
 
 from planner.sim import PyBulletWorld, SimState, load_world
-from planner.sim.grasps import make_grasp, solve_ik, tcp_target
+from planner.sim.geometry import rotation
+from planner.sim.grasps import hand_heading, make_grasp, solve_ik, tcp_target
 from planner.tasks.loader import data_dir
 
 # A seed that puts the body where obstacle3 stands on the shelf (region2's back left corner).
@@ -159,6 +161,43 @@ def test_a_full_binding_of_desk_passes_and_puts_the_body_on_the_shelf() -> None:
         assert [c.call.name for c in out.checks] == ["Inv-kin", "Plan-motion", "Move-Place"]
         assert out.state.held is None
         assert world.scene.in_region("body", "region2")
+    finally:
+        world.close()
+
+
+def _hand_yaw(world: PyBulletWorld, direction: str, seed: list[float]) -> float:
+    """The world heading of the hand that places the body held by `direction` at `seed`."""
+    scene = world.scene
+    grasp = make_grasp(scene, "body", direction, scene.named_pose("pose0", "body"))
+    body_pose = scene.region_pose("body", "region2", seed, hand_heading(grasp))
+    approach = rotation(body_pose[1]) @ np.asarray(grasp.approach_in_body)
+    return math.atan2(approach[1], approach[0])
+
+
+def test_a_held_body_is_placed_by_the_hand_heading_whichever_face_it_holds() -> None:
+    """The seed's yaw is the hand's: front and right grasps put the hand at the same heading
+    for one seed, so their feasible yaws are one band (deskP, uniform samples: both feasible
+    only for yaw seeds in 0.4-0.6), and what one grasp taught transfers to the other."""
+    world = load_world("deskP", seed=0)
+    try:
+        for yaw_seed in (0.1, 0.45, 0.8):
+            seed = [0.5, 0.5, yaw_seed]
+            front, right = _hand_yaw(world, "front", seed), _hand_yaw(world, "right", seed)
+            assert abs(math.remainder(front - right, 2 * math.pi)) < 1e-6
+        rng = np.random.default_rng(3)
+        band = {}
+        for direction in ("front", "right"):
+            picked = world.transition(0, {"#dir1": direction}, world.initial_state())
+            assert picked.ok, picked.failed
+            feasible = []
+            for _ in range(120):
+                seed = [float(v) for v in rng.uniform(size=3)]
+                bindings = {"#dir1": direction, "#pose12": seed}
+                if world.transition(1, bindings, picked.state).ok:
+                    feasible.append(seed[2])
+            assert feasible, f"no feasible {direction} placement in 120 seeds"
+            band[direction] = (min(feasible), max(feasible))
+        assert all(low > 0.3 and high < 0.7 for low, high in band.values()), band
     finally:
         world.close()
 

@@ -1,0 +1,145 @@
+"""MPF suggestions in the planner's own process, from the service's model snapshots.
+
+A rollout costs 10-20 ms of simulation; a suggestion from the service cost 40-60 ms, most of it
+waiting for a CPU that three planners and the fit worker share. The models themselves are small
+(a variational GP is its inducing points and two cached terms), so the planner fetches each
+type's current predictor (`POST /v1/kbs/{kb}/models`) and maximises MPF itself, with the same
+code (`surrogate.suggest`) and optimiser settings as the service. Between fetches the points
+this planner posted weigh in at once (`RecentPoints`), as they would in the service; a model is
+fetched anew once its type has new points and `REFRESH_ROLLOUTS` rollouts have passed, and only
+if its version changed.
+
+Not shared with other planners: the service's pending suggestions. Planners that share one
+knowledge base and want to be pushed apart ask the service instead
+(`KnowledgeSession(local=False)`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from client.models import ModelsOut, SuggestIn, SuggestOut, Value
+from surrogate import snapshot
+from surrogate.acquisition import ConstraintTerm
+from surrogate.encoding import Domain, SpaceEncoder
+from surrogate.models import FeasibilityPredictor, RecentPoints
+from surrogate.optimize import OptimizerConfig
+from surrogate.suggest import mpf_points
+
+REFRESH_ROLLOUTS = 3
+"""Rollouts between two fetches of one type's model (a fit takes longer than a few rollouts)."""
+
+FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
+
+
+@dataclass
+class _Model:
+    space: dict[str, Domain]
+    fitted: FeasibilityPredictor
+    version: str
+    n_fitted: int
+    fetched_at: int  # rollout
+    own: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)  # (batch, x, ok)
+    _predictor: FeasibilityPredictor | None = None
+
+    def predictor(self) -> FeasibilityPredictor:
+        """The fetched predictor with this planner's points since weighed in."""
+        if self._predictor is None:
+            self._predictor = self.fitted
+            if self.own:
+                encoder = SpaceEncoder(self.space)
+                feasible = [x for _, x, ok in self.own if ok]
+                infeasible = [x for _, x, ok in self.own if not ok]
+                empty = np.zeros((0, encoder.dim))
+                self._predictor = RecentPoints(
+                    self.fitted,
+                    encoder.encode_points(feasible) if feasible else empty,
+                    encoder.encode_points(infeasible) if infeasible else empty,
+                )
+        return self._predictor
+
+    def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
+        self.own.append((batch, dict(x), feasible))
+        self._predictor = None
+
+
+class LocalSurrogates:
+    def __init__(self, fetch: FetchFn) -> None:
+        self._fetch = fetch
+        self._models: dict[str, _Model] = {}
+        self._config = OptimizerConfig()
+        self.fetches = 0
+
+    def note(self, type_id: str, x: Mapping[str, Value], feasible: bool, batch: int) -> None:
+        """A point this planner posted (in poster batch `batch`)."""
+        model = self._models.get(type_id)
+        if model is not None:
+            model.add(batch, x, feasible)
+
+    def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
+        """What the service's `suggest` would answer with no suggestion pending. `stored`: the
+        last poster batch the service has taken in (its points are in a fetched model)."""
+        type_ids = list(dict.fromkeys(c.type_id for c in request.constraints))
+        stale = [t for t in type_ids if self._stale(t, rollout)]
+        if stale:
+            self._refresh(stale, rollout, stored)
+        terms = [
+            ConstraintTerm.build(
+                c.type_id,
+                self._models[c.type_id].predictor(),
+                self._models[c.type_id].space,
+                c.bind,
+                request.fixed,
+            )
+            for c in request.constraints
+        ]
+        points = mpf_points(
+            terms,
+            request.space,
+            fixed=request.fixed,
+            exclude=request.exclude,
+            pending=(),
+            lookahead=request.lookahead,
+            seed=request.seed or 0,
+            config=self._config,
+            n=request.n,
+        )
+        first = points[0]
+        return SuggestOut(
+            x=first.x,
+            mpf=first.mpf,
+            p_feasible=first.p_feasible,
+            batch=points if request.n > 1 else [],
+            method="mpf-local",
+            n_fitted={t: self._models[t].n_fitted for t in type_ids},
+        )
+
+    def _stale(self, type_id: str, rollout: int) -> bool:
+        model = self._models.get(type_id)
+        return model is None or (bool(model.own) and rollout - model.fetched_at >= REFRESH_ROLLOUTS)
+
+    def _refresh(self, type_ids: list[str], rollout: int, stored: int) -> None:
+        known = {t: self._models[t].version for t in type_ids if t in self._models}
+        answer = self._fetch(type_ids, known)
+        self.fetches += 1
+        names = {f.name for f in dataclasses.fields(OptimizerConfig)}
+        self._config = OptimizerConfig(**{k: v for k, v in answer.optimizer.items() if k in names})
+        for shot in answer.models:
+            previous = self._models.get(shot.type_id)
+            own = [p for p in previous.own if p[0] > stored] if previous is not None else []
+            self._models[shot.type_id] = _Model(
+                space=dict(shot.space),
+                fitted=snapshot.load(shot.predictor),
+                version=shot.version,
+                n_fitted=shot.n_fitted,
+                fetched_at=rollout,
+                own=own,
+            )
+        for type_id in type_ids:
+            if type_id not in self._models:
+                raise LookupError(f"the service sent no model for type {type_id}")
+            self._models[type_id].fetched_at = rollout

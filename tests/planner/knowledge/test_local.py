@@ -1,0 +1,95 @@
+"""MPF in the planner's process from the service's snapshots, against a real service."""
+
+from __future__ import annotations
+
+import time
+
+from client import CpkbClient
+from client.models import SuggestIn
+from planner.knowledge import KnowledgeSession
+from planner.knowledge.local import LocalSurrogates
+from planner.search import PWUCT
+from planner.search.analytic import analytic_world
+from planner.search.samplers.quasi_random import QuasiRandomSampler
+from surrogate.encoding import SpaceEncoder
+
+
+def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
+    """Points of `task` in the knowledge base, and every type's fit landed."""
+    with CpkbClient(live_kb.url) as client:
+        world = analytic_world(task)
+        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        PWUCT(world, QuasiRandomSampler(), seed=0, observer=session).run(
+            rollouts, stop_at_first=False
+        )
+        session.close()
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            types = [
+                client.get_type(live_kb.name, t.type_id) for t in client.list_types(live_kb.name)
+            ]
+            if all(t.surrogate.n_fitted == t.n_points for t in types if t.surrogate):
+                return
+            time.sleep(0.2)
+        raise AssertionError("fits did not land in 120 s")
+
+
+def _shelf_request(client: CpkbClient, kb: str) -> SuggestIn:
+    world = analytic_world("desk")
+    session = KnowledgeSession(client, kb, world, local=False)
+    session.prematch()
+    constraints = session.constraints_at("#dir1", {})
+    session.close()
+    assert constraints
+    domains = {d.var: d.domain for d in world.skeleton.decisions}
+    return SuggestIn(
+        space=domains,
+        constraints=constraints,
+        exclude=[{"#dir1": "back"}],
+        lookahead=["#pose12"],
+        seed=7,
+        n=4,
+    )
+
+
+def test_a_local_suggestion_is_what_the_service_answers(live_kb):
+    _stock(live_kb)
+    with CpkbClient(live_kb.url) as client:
+        request = _shelf_request(client, live_kb.name)
+        local = LocalSurrogates(lambda ids, known: client.models(live_kb.name, ids, known))
+        mine = local.suggest(request, rollout=0, stored=0)
+        served = client.suggest(live_kb.name, request)
+    assert mine.method == "mpf-local" and local.fetches == 1
+    assert [p.x for p in mine.batch] == [p.x for p in served.batch]
+    assert [p.mpf for p in mine.batch] == [p.mpf for p in served.batch]
+
+
+def test_own_points_weigh_in_before_the_next_fetch(live_kb):
+    _stock(live_kb)
+    with CpkbClient(live_kb.url) as client:
+        request = _shelf_request(client, live_kb.name)
+        local = LocalSurrogates(lambda ids, known: client.models(live_kb.name, ids, known))
+        first = local.suggest(request, rollout=0, stored=0)
+        type_id = min(first.p_feasible, key=first.p_feasible.get)
+        constraint = next(c for c in request.constraints if c.type_id == type_id)
+        x = {label: first.x[var] for label, var in constraint.bind.items()}
+        model = local._models[type_id]
+        z = SpaceEncoder(model.space).encode_points([x])
+        before = float(model.predictor().proba(z)[0])
+        local.note(type_id, x, feasible=False, batch=1)
+        after = float(model.predictor().proba(z)[0])
+        again = local.suggest(request, rollout=1, stored=0)
+    assert after < before - 0.1
+    assert local.fetches == 1  # weighed in without asking the service
+    assert again.x != first.x
+
+
+def test_a_planner_answers_its_own_suggestions(live_kb):
+    from planner.run import run_plan
+
+    common = {"kb_url": live_kb.url, "kb": live_kb.name}
+    run_plan("analytic:deskP", "cp-bo", 3, max_rollouts=30, stop_at_first=False, **common)
+    result = run_plan("analytic:desk", "cp-bo", 3, **common)
+    assert result.solved and result.kb_errors == 0
+    assert result.suggestions > 0 and result.local_suggestions == result.suggestions
+    assert 0 < result.model_fetches <= result.suggestions
