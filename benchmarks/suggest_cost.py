@@ -2,8 +2,8 @@
 
 Runs `desk` with `cp-bo` (PyBullet, an embedded service on a temporary SQLite file) and records
 every suggest request it makes, waits for the surrogates to be fitted, then replays the requests
-in-process against the same knowledge base with several optimiser settings (raw samples only, or
-plus 3, 5 or 20 NSGA-II generations): the median latency of `server.surrogates.service.suggest`
+in-process against the same knowledge base with several optimiser settings (raw samples only,
+or with 1, 2, 3, 5 or 20 NSGA-II generations): the median latency of the service's `suggest`
 and the mean MPF of the answers. Also times the same requests over HTTP, to show the transport.
 
     .venv/bin/python benchmarks/suggest_cost.py [--seed 1] [--out benchmarks/results]
@@ -29,10 +29,10 @@ from planner.run import run_plan
 from server.db import Store
 from server.surrogates import service
 from server.surrogates.engine import EngineConfig, SurrogateEngine
-from server.surrogates.pending import PendingBook
 from surrogate.optimize import OptimizerConfig
+from surrogate.pending import PendingBook
 
-GENERATIONS = (0, 3, 5, 20)
+GENERATIONS = (0, 1, 2, 3, 5, 20)
 REPEATS = 3
 
 
@@ -62,7 +62,7 @@ def record_run(url: str, seed: int) -> list[SuggestIn]:
     saved = client_package.CpkbClient
     client_package.CpkbClient = recording  # type: ignore[assignment,misc]
     try:
-        run_plan("desk", "cp-bo", seed, kb_url=url, kb="bench")
+        run_plan("desk", "cp-bo", seed, kb_url=url, kb="bench", suggest_in="service")
     finally:
         client_package.CpkbClient = saved  # type: ignore[misc]
     return [request for c in made for request in c.requests]
@@ -78,7 +78,7 @@ def replay(db_url: str, requests: list[SuggestIn]) -> list[dict[str, Any]]:
     rows = []
     try:
         for n_gen in GENERATIONS:
-            optimizer = OptimizerConfig(n_gen=n_gen, margin=0.1)
+            optimizer = OptimizerConfig(n_gen=n_gen, margin=0.1, margin_abs=0.025)
             engine.config = EngineConfig(fit_in_process=False, optimizer=optimizer)
             seconds, values = [], []
             for _ in range(REPEATS):

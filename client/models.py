@@ -262,10 +262,12 @@ class ModelSnapshot(BaseModel):
 
 
 class ModelsOut(BaseModel):
-    """The changed models, and the optimiser settings the service's own `suggest` uses."""
+    """The changed models, and the settings the service's own `suggest` uses: the optimiser's,
+    and how long a served suggestion stays pending."""
 
     models: list[ModelSnapshot]
     optimizer: dict[str, float | int | bool]
+    pending_ttl_s: float
 
 
 class Health(BaseModel):

@@ -55,7 +55,7 @@ class Settings(BaseSettings):
     surrogate_pending_ttl_s: float = Field(default=30.0, ge=0)
     surrogate_prefit_types: int = Field(default=16, ge=0)
     surrogate_pop_size: int = Field(default=24, ge=4, le=1000)
-    surrogate_generations: int = Field(default=5, ge=0, le=1000)
+    surrogate_generations: int = Field(default=2, ge=0, le=1000)
     surrogate_raw_samples: int = Field(default=256, ge=1, le=100_000)
     # Suggest answers the most spread point within this fraction of the best MPF (0: the argmax).
     surrogate_mpf_margin: float = Field(default=0.1, ge=0.0, le=1.0)

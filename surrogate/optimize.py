@@ -50,7 +50,7 @@ class OptimizerConfig:
     cut to what `benchmarks/synthetic_cpbo.py` measured to reach the same acquisition values."""
 
     pop_size: int = 24
-    n_gen: int = 5  # refinement generations after the raw samples (0: raw samples only)
+    n_gen: int = 2  # generations, the first being the start population (0: raw samples only)
     raw_samples: int = 256
     margin: float = 0.0  # > 0: the most spread candidate within this fraction of the best value
     margin_abs: float = 0.0  # ... or within this much of it: near-equal tiny P(feasible) ties

@@ -9,8 +9,10 @@ this planner posted weigh in at once (`RecentPoints`), as they would in the serv
 fetched anew once its type has new points and `REFRESH_ROLLOUTS` rollouts have passed, and only
 if its version changed.
 
-Not shared with other planners: the service's pending suggestions. Planners that share one
-knowledge base and want to be pushed apart ask the service instead
+Like the service, it keeps the suggestions it served as pending until a point answers them (or
+they expire), and pushes new ones away from them: a batch's unused points and other nodes' recent
+suggestions keep the tree spread. What it cannot see are other planners' pending suggestions:
+planners that share one knowledge base and want to be pushed apart ask the service instead
 (`KnowledgeSession(local=False)`).
 """
 
@@ -28,11 +30,13 @@ from surrogate.acquisition import ConstraintTerm
 from surrogate.encoding import Domain, SpaceEncoder
 from surrogate.models import FeasibilityPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
+from surrogate.pending import PendingBook
 from surrogate.suggest import mpf_points
 
 REFRESH_ROLLOUTS = 3
 """Rollouts between two fetches of one type's model (a fit takes longer than a few rollouts)."""
 
+PENDING_KEY = "local"  # the one knowledge base of this process's pending book
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
 
 
@@ -72,17 +76,19 @@ class LocalSurrogates:
         self._fetch = fetch
         self._models: dict[str, _Model] = {}
         self._config = OptimizerConfig()
+        self._pending = PendingBook(ttl_s=30.0)
         self.fetches = 0
 
     def note(self, type_id: str, x: Mapping[str, Value], feasible: bool, batch: int) -> None:
         """A point this planner posted (in poster batch `batch`)."""
+        self._pending.answered(PENDING_KEY, type_id, [x])
         model = self._models.get(type_id)
         if model is not None:
             model.add(batch, x, feasible)
 
     def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
-        """What the service's `suggest` would answer with no suggestion pending. `stored`: the
-        last poster batch the service has taken in (its points are in a fetched model)."""
+        """What the service's `suggest` would answer to this planner alone. `stored`: the last
+        poster batch the service has taken in (its points are in a fetched model)."""
         type_ids = list(dict.fromkeys(c.type_id for c in request.constraints))
         stale = [t for t in type_ids if self._stale(t, rollout)]
         if stale:
@@ -97,17 +103,22 @@ class LocalSurrogates:
             )
             for c in request.constraints
         ]
+        pending = self._pending.for_request(PENDING_KEY, frozenset(type_ids))
         points = mpf_points(
             terms,
             request.space,
             fixed=request.fixed,
             exclude=request.exclude,
-            pending=(),
+            pending=pending,
             lookahead=request.lookahead,
             seed=request.seed or 0,
             config=self._config,
             n=request.n,
         )
+        binds = [(c.type_id, c.bind) for c in request.constraints]
+        for answer in points:
+            proposed = {v: value for v, value in answer.x.items() if v not in request.lookahead}
+            self._pending.add(PENDING_KEY, proposed, binds)
         first = points[0]
         return SuggestOut(
             x=first.x,
@@ -116,6 +127,7 @@ class LocalSurrogates:
             batch=points if request.n > 1 else [],
             method="mpf-local",
             n_fitted={t: self._models[t].n_fitted for t in type_ids},
+            n_pending=len(pending),
         )
 
     def _stale(self, type_id: str, rollout: int) -> bool:
@@ -128,6 +140,7 @@ class LocalSurrogates:
         self.fetches += 1
         names = {f.name for f in dataclasses.fields(OptimizerConfig)}
         self._config = OptimizerConfig(**{k: v for k, v in answer.optimizer.items() if k in names})
+        self._pending.ttl_s = answer.pending_ttl_s
         for shot in answer.models:
             previous = self._models.get(shot.type_id)
             own = [p for p in previous.own if p[0] > stored] if previous is not None else []

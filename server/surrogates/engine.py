@@ -27,7 +27,6 @@ from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
 from server.surrogates import fitproc
-from server.surrogates.pending import PendingBook
 from surrogate.encoding import Domain, SpaceEncoder
 from surrogate.models import (
     MIN_POINTS,
@@ -38,6 +37,7 @@ from surrogate.models import (
     UnseenChoices,
 )
 from surrogate.optimize import OptimizerConfig
+from surrogate.pending import PendingBook
 
 log = logging.getLogger("cpkb.surrogates")
 Key = tuple[str, str]

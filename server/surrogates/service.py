@@ -152,4 +152,8 @@ def models(engine: SurrogateEngine, kb: str, body: ModelsIn) -> ModelsOut:
                 predictor=snapshot.dump(handle.predictor),
             )
         )
-    return ModelsOut(models=changed, optimizer=dataclasses.asdict(engine.config.optimizer))
+    return ModelsOut(
+        models=changed,
+        optimizer=dataclasses.asdict(engine.config.optimizer),
+        pending_ttl_s=engine.config.pending_ttl_s,
+    )

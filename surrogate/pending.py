@@ -40,7 +40,8 @@ def _same(a: Value, b: object) -> bool:
 
 
 class PendingBook:
-    """Thread-safe: the request threads add, the fit worker resolves."""
+    """Thread-safe: in the service, request threads add and the fit worker resolves; a planner
+    suggesting in its own process keeps one too (`planner.knowledge.local`)."""
 
     def __init__(self, ttl_s: float, clock: Callable[[], float] = time.monotonic) -> None:
         self.ttl_s = ttl_s
