@@ -308,11 +308,12 @@ class KnowledgeSession:
     def _suggest_locally(self, request: SuggestIn) -> SuggestOut | None:
         """The answer from this process's copies of the models; None (ask the service, which
         says what is wrong) when that fails."""
-        if self.local is None:
+        local = self.local
+        if local is None:
             return None
-        fetches = self.local.fetches
+        fetches = local.fetches
         try:
-            answer = self.local.suggest(request, self._rollout, self.poster.done)
+            answer = local.suggest(request, self._rollout, self.poster.done)
         except Exception as exc:
             # The service answers from here on: it says what was wrong with a request, and a
             # service without snapshots (an older version) is not asked again.
@@ -320,7 +321,7 @@ class KnowledgeSession:
             self.local = None
             return None
         finally:
-            self.stats.model_fetches += self.local.fetches - fetches
+            self.stats.model_fetches += local.fetches - fetches
         self.stats.local_suggestions += 1
         return answer
 

@@ -2,7 +2,8 @@
 
 Each rollout descends from the root: at a decision node it adds a visit, then either opens a
 new child (the sampler proposes a value and the world runs the following transition layer) or
-selects an open child by UCB. A rollout ends at a failed transition (reward `0.1 d/D`) or at a
+selects an open child by UCB. A rollout ends at a failed transition (reward `0.1 d/D`, where d
+counts the layers passed and the passed share of the failed layer's checks) or at a
 full binding list that passed every transition (reward `1.1`); the reward is backed up by max.
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
@@ -163,11 +164,21 @@ class PWUCT:
 
     def _finish(self, child: ChildNode) -> dict[str, Value]:
         node = child.parent
-        layers_passed = self.n_layers if child.success else 2 * node.index + 1
+        layers_passed = self.n_layers if child.success else self._depth_reached(child)
         r = reward(layers_passed, self.n_layers, child.success)
         self.best_depth = max(self.best_depth, layers_passed / self.n_layers)
         backup(child, r)
         return {**node.path, node.var.var: child.value} if child.success else {}
+
+    def _depth_reached(self, child: ChildNode) -> float:
+        """Layers passed by a failed rollout: those before its transition layer, plus the share
+        of that layer's checks that passed. A placement that passed IK and failed in motion
+        planning got further than one IK refused; with whole layers only, every failed child of
+        a node would score alike and MCTS-BO's GP would see no signal."""
+        index = child.parent.index
+        calls = len(self.world.skeleton.transitions[index].calls)
+        passed = sum(check.ok for check in child.outcome.checks)
+        return 2 * index + 1 + passed / max(calls, 1)
 
     def _context(self, node: DecisionNode) -> SampleContext:
         return SampleContext(

@@ -220,8 +220,9 @@ def backup(child: ChildNode, reward: float) -> None:
         node = parent.parent
 
 
-def reward(layers_passed: int, layers_total: int, success: bool) -> float:
-    """The paper's reward `0.1 d_end / d_total + r_end`; `d_end` counts skeleton layers passed."""
+def reward(layers_passed: float, layers_total: int, success: bool) -> float:
+    """The paper's reward `0.1 d_end / d_total + r_end`; `d_end` counts skeleton layers passed
+    (with the passed share of a failed transition layer's checks)."""
     return 0.1 * layers_passed / layers_total + (1.0 if success else 0.0)
 
 

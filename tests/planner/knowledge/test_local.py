@@ -112,3 +112,29 @@ def test_a_planner_answers_its_own_suggestions(live_kb):
     assert result.solved and result.kb_errors == 0
     assert result.suggestions > 0 and result.local_suggestions == result.suggestions
     assert 0 < result.model_fetches <= result.suggestions
+
+
+def test_when_a_local_suggestion_fails_the_service_answers(live_kb):
+    """A service without snapshots (an older version), or a snapshot this planner cannot read:
+    the search goes on with the service's answers, and says so once."""
+    _stock(live_kb)
+
+    class OldService(CpkbClient):
+        def models(self, *args, **kwargs):
+            raise RuntimeError("404 Not Found")
+
+    world = analytic_world("desk")
+    with OldService(live_kb.url) as client:
+        session = KnowledgeSession(client, live_kb.name, world)
+        session.prematch()
+        grasp = world.skeleton.decisions[0]
+        constraints = session.constraints_at("#dir1", {})
+        first = session.suggest(grasp, {}, [], constraints, seed=1)
+        second = session.suggest(grasp, {}, [], constraints, seed=2)
+        session.close()
+    assert first is not None and second is not None, session.stats.events
+    assert session.local is None and session.stats.local_suggestions == 0
+    assert session.stats.suggestions == 2
+    assert list(session.stats.events) == [
+        "local suggestion failed, the service answers instead: 404 Not Found"
+    ]

@@ -176,13 +176,20 @@ def test_search_is_reproducible_for_a_seed_and_varies_across_seeds():
 
 
 def test_search_rewards_failures_by_depth():
-    search = PWUCT(analytic_world("desk"), QuasiRandomSampler(), seed=0)
+    """0.1 d/D with d the layers passed, plus the passed share of the failed layer's checks."""
+    world = analytic_world("desk")
+    search = PWUCT(world, QuasiRandomSampler(), seed=0)
     search.run(5, stop_at_first=False)
+    calls = len(world.skeleton.transitions[0].calls)
+    failed = [c for c in search.root.children if not c.outcome.ok]
+    assert failed
+    for child in failed:
+        passed = sum(check.ok for check in child.outcome.checks)
+        assert passed < calls
+        assert child.reward == pytest.approx(0.1 * (1 + passed / calls) / 4)
     for child in search.root.children:
-        if not child.outcome.ok:
-            assert child.reward == pytest.approx(0.025)
-        elif child.next is not None and child.next.children and not child.success:
-            assert child.reward >= 0.075
+        if child.outcome.ok and child.next is not None and child.next.children:
+            assert child.success or child.reward >= 0.075
 
 
 def test_budget_without_stopping_keeps_searching_after_the_first_solution():
