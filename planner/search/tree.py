@@ -37,6 +37,12 @@ follow, or a box placed where the next box has no room, loses the search to a va
 knowledge base expects to work."""
 OUTLOOK_FREE_EVERY = 4
 """Every this many visits a node selects by plain UCB, whatever the outlooks: completeness."""
+OUTLOOK_PRIOR_WEIGHT = 4.0
+"""A child's outlook is the knowledge base's P(feasible) below it taken as a Beta prior worth
+this many rollouts, updated by the rollouts that went through the child and failed:
+`w p / (w + failures)`. The knowledge base learns a failure only where it happened (until a refit
+spreads it), so a grasp that no placement follows kept its rating for 13-56 of desk's rollouts;
+counted failures make the search leave it once another child's evidence is better."""
 
 
 @dataclass(eq=False)
@@ -163,6 +169,16 @@ def widens(node: DecisionNode, k: float = PW_K) -> bool:
     return node.visits > k * n_children**2
 
 
+def child_outlook(child: ChildNode) -> float | None:
+    """The knowledge base's view below `child` after the failures through it (see
+    `OUTLOOK_PRIOR_WEIGHT`); None if it has not rated the node below."""
+    p = child.next.last_p_feasible if child.next is not None else None
+    if p is None or child.parent.n_choices is None:
+        return p
+    failures = 0 if child.success else child.visits
+    return OUTLOOK_PRIOR_WEIGHT * p / (OUTLOOK_PRIOR_WEIGHT + failures)
+
+
 def outlook(node: DecisionNode) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
@@ -170,7 +186,7 @@ def outlook(node: DecisionNode) -> float | None:
     for child in node.children:
         if child.closed:
             continue
-        p = child.next.last_p_feasible if child.next is not None else None
+        p = child_outlook(child)
         if p is None:
             return None
         best = p if best is None else max(best, p)
@@ -201,8 +217,9 @@ def ucb_select(
         if child.closed:
             continue
         if best_outlook is not None and outlook_ratio is not None:
-            assert child.next is not None and child.next.last_p_feasible is not None
-            if child.next.last_p_feasible * outlook_ratio < best_outlook:
+            rated = child_outlook(child)
+            assert rated is not None
+            if rated * outlook_ratio < best_outlook:
                 continue
         score = child.reward + c * math.sqrt(log_n / max(child.visits, 1))
         if score > best_score:

@@ -12,9 +12,11 @@ from planner.search.analytic import analytic_world, shelf_feasible
 from planner.search.samplers.base import Proposal
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from planner.search.tree import (
+    OUTLOOK_PRIOR_WEIGHT,
     ChildNode,
     DecisionNode,
     backup,
+    child_outlook,
     close,
     comparable_outlook,
     mark_hopeless,
@@ -230,10 +232,27 @@ def test_selection_keeps_to_children_within_the_outlook_ratio_of_the_best():
     assert ucb_select(n, outlook_ratio=1.5) is trap
     note_proposal(trap.next, 0.02)
     note_proposal(promising.next, 0.3)
-    assert outlook(n) == 0.3
+    assert outlook(n) == pytest.approx(OUTLOOK_PRIOR_WEIGHT * 0.3 / (OUTLOOK_PRIOR_WEIGHT + 9))
     assert ucb_select(n, outlook_ratio=1.5) is promising
     note_proposal(promising.next, 0.025)  # its own proposals have since failed
     assert ucb_select(n, outlook_ratio=1.5) is trap
+
+
+def test_failures_through_a_choice_lower_its_outlook_but_not_a_placement_s():
+    """A grasp whose placements keep failing is left for one the knowledge base rates lower
+    but that has failed less; a placement child is a single value, its outlook the model's."""
+    grasps = node(CategoricalDomain(choices=["top", "front", "right"]))
+    trap = add_child(grasps, "top", visits=12, r=0.075)
+    fresh = add_child(grasps, "front", visits=1, r=0.075)
+    note_proposal(trap.next, 0.5)  # an unseen grasp: the stated prior, far from its failures
+    note_proposal(fresh.next, 0.3)
+    grasps.visits = 13
+    assert child_outlook(trap) < child_outlook(fresh) < 0.3
+    assert ucb_select(grasps, outlook_ratio=1.25) is fresh
+    placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
+    tried = add_child(placements, [0.5], visits=12, r=0.075)
+    note_proposal(tried.next, 0.5)
+    assert child_outlook(tried) == 0.5
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
@@ -241,7 +260,9 @@ def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated()
     child = add_child(n, "a")
     assert comparable_outlook(n) is None  # its child is not rated yet
     note_proposal(child.next, 0.1)
-    assert comparable_outlook(n) == 0.1
+    assert comparable_outlook(n) == pytest.approx(
+        OUTLOOK_PRIOR_WEIGHT * 0.1 / (OUTLOOK_PRIOR_WEIGHT + child.visits)
+    )
     add_child(n, "b", FAIL)
     assert comparable_outlook(n) is None  # exhausted
 
