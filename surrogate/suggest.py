@@ -7,41 +7,61 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from client.models import SuggestedPoint
+from client.models import SuggestedPoint, SuggestIn, SuggestOut
 from surrogate.acquisition import MPF, ConstraintTerm
-from surrogate.encoding import Domain, SpaceEncoder, Value
+from surrogate.encoding import SpaceEncoder, Value
 from surrogate.optimize import OptimizerConfig, maximize_batch
+from surrogate.pending import PendingBook
 
 
 def mpf_points(
     terms: Sequence[ConstraintTerm],
-    space: Mapping[str, Domain],
+    request: SuggestIn,
     *,
-    fixed: Mapping[str, Value],
-    exclude: Sequence[Mapping[str, Value]],
     pending: Sequence[Mapping[str, Value]],
-    lookahead: Sequence[str],
     seed: int,
     config: OptimizerConfig,
-    n: int,
 ) -> list[SuggestedPoint]:
-    """Up to `n` spread MPF maximisers (see `maximize_batch`), each with every type's
+    """Up to `request.n` spread MPF maximisers (see `maximize_batch`), each with every type's
     P(feasible). Raises EncodingError or SpaceExhausted as `maximize_batch` does."""
     mpf = MPF(list(terms))
     found = maximize_batch(
         mpf,
-        space,
-        fixed=fixed,
-        exclude=exclude,
+        request.space,
+        fixed=request.fixed,
+        exclude=request.exclude,
         pending=pending,
         seed=seed,
         config=config,
-        n=n,
-        distinct=[var for var in space if var not in lookahead],
+        n=request.n,
+        distinct=[var for var in request.space if var not in request.lookahead],
     )
     xs = [s.x for s in found]
-    per_term = mpf.per_term(SpaceEncoder(space).columns(xs))
+    per_term = mpf.per_term(SpaceEncoder(request.space).columns(xs))
     return [_point(x, terms, per_term[:, i]) for i, x in enumerate(xs)]
+
+
+def served(
+    request: SuggestIn,
+    points: list[SuggestedPoint],
+    book: PendingBook,
+    key: str,
+    **extra: object,
+) -> SuggestOut:
+    """The answer to `request`, its points recorded as pending in `book` under `key` (the
+    lookahead variables are only a hint and are not recorded)."""
+    binds = [(c.type_id, c.bind) for c in request.constraints]
+    for point in points:
+        proposed = {v: value for v, value in point.x.items() if v not in request.lookahead}
+        book.add(key, proposed, binds)
+    first = points[0]
+    return SuggestOut(
+        x=first.x,
+        mpf=first.mpf,
+        p_feasible=first.p_feasible,
+        batch=points if request.n > 1 else [],
+        **extra,
+    )
 
 
 def _point(x: dict, terms: Sequence[ConstraintTerm], per_term: np.ndarray) -> SuggestedPoint:

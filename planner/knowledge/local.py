@@ -31,7 +31,7 @@ from surrogate.encoding import Domain, SpaceEncoder
 from surrogate.models import FeasibilityPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
-from surrogate.suggest import mpf_points
+from surrogate.suggest import mpf_points, served
 
 REFRESH_ROLLOUTS = 3
 """Rollouts between two fetches of one type's model (a fit takes longer than a few rollouts)."""
@@ -105,26 +105,13 @@ class LocalSurrogates:
         ]
         pending = self._pending.for_request(PENDING_KEY, frozenset(type_ids))
         points = mpf_points(
-            terms,
-            request.space,
-            fixed=request.fixed,
-            exclude=request.exclude,
-            pending=pending,
-            lookahead=request.lookahead,
-            seed=request.seed or 0,
-            config=self._config,
-            n=request.n,
+            terms, request, pending=pending, seed=request.seed or 0, config=self._config
         )
-        binds = [(c.type_id, c.bind) for c in request.constraints]
-        for answer in points:
-            proposed = {v: value for v, value in answer.x.items() if v not in request.lookahead}
-            self._pending.add(PENDING_KEY, proposed, binds)
-        first = points[0]
-        return SuggestOut(
-            x=first.x,
-            mpf=first.mpf,
-            p_feasible=first.p_feasible,
-            batch=points if request.n > 1 else [],
+        return served(
+            request,
+            points,
+            self._pending,
+            PENDING_KEY,
             method="mpf-local",
             n_fitted={t: self._models[t].n_fitted for t in type_ids},
             n_pending=len(pending),

@@ -26,7 +26,7 @@ from surrogate import snapshot
 from surrogate.acquisition import ConstraintTerm
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
 from surrogate.optimize import SpaceExhausted, space_filling
-from surrogate.suggest import mpf_points
+from surrogate.suggest import mpf_points, served
 
 
 def _check_binding(i: int, type_id: str, handle: ModelHandle, body: SuggestIn) -> None:
@@ -86,15 +86,7 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
     try:
         if terms:
             points = mpf_points(
-                terms,
-                body.space,
-                fixed=body.fixed,
-                exclude=body.exclude,
-                pending=pending,
-                lookahead=body.lookahead,
-                seed=seed,
-                config=engine.config.optimizer,
-                n=body.n,
+                terms, body, pending=pending, seed=seed, config=engine.config.optimizer
             )
         else:
             x = space_filling(
@@ -105,15 +97,11 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
         raise InvalidInput(str(exc)) from exc
     except SpaceExhausted as exc:
         raise Conflict(f"exclude: {exc}") from exc
-    for answer in points:
-        proposed = {var: value for var, value in answer.x.items() if var not in body.lookahead}
-        engine.pending.add(kb, proposed, [(c.type_id, c.bind) for c in body.constraints])
-    first = points[0]
-    return SuggestOut(
-        x=first.x,
-        mpf=first.mpf,
-        p_feasible=first.p_feasible,
-        batch=points if body.n > 1 else [],
+    return served(
+        body,
+        points,
+        engine.pending,
+        kb,
         method="mpf" if terms else "space-filling",
         n_fitted=fitted,
         n_pending=len(pending),

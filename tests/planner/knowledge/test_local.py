@@ -15,7 +15,8 @@ from surrogate.encoding import SpaceEncoder
 
 
 def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
-    """Points of `task` in the knowledge base, and every type's fit landed."""
+    """Points of `task` in the knowledge base, and every type's fit landed (none queued: a fit
+    landing between two calls would change the model under a comparison)."""
     with CpkbClient(live_kb.url) as client:
         world = analytic_world(task)
         session = KnowledgeSession(client, live_kb.name, world, background=False)
@@ -28,7 +29,13 @@ def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
             types = [
                 client.get_type(live_kb.name, t.type_id) for t in client.list_types(live_kb.name)
             ]
-            if all(t.surrogate.n_fitted == t.n_points for t in types if t.surrogate):
+            settled = [
+                t.surrogate is not None
+                and t.surrogate.n_fitted == t.n_points
+                and t.surrogate.status not in ("fitting", "queued")
+                for t in types
+            ]
+            if all(settled):
                 return
             time.sleep(0.2)
         raise AssertionError("fits did not land in 120 s")
