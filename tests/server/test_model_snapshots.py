@@ -2,22 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
-import pytest
-from suggest_support import make_client, post_points
+from suggest_support import post_points
 
 from client.models import ModelSnapshot
 from surrogate import snapshot
 from surrogate.encoding import SpaceEncoder
-
-
-@pytest.fixture
-def client(sqlite_url: str) -> Iterator[Any]:
-    with make_client(sqlite_url) as c:
-        yield c
 
 
 def test_a_snapshot_answers_what_predict_answers(client: Any) -> None:

@@ -2,17 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
-import pytest
 from suggest_support import make_client, post_points
-
-
-@pytest.fixture
-def client(sqlite_url: str) -> Iterator[Any]:
-    with make_client(sqlite_url) as c:
-        yield c
 
 
 def test_predict_answers_probabilities_or_a_clear_4xx(client: Any) -> None:

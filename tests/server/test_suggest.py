@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
-import pytest
 from suggest_support import (
     SPACE,
     as_decision,
@@ -18,12 +16,6 @@ from suggest_support import (
 )
 
 URL = "/v1/kbs/default/suggest"
-
-
-@pytest.fixture
-def client(sqlite_url: str) -> Iterator[Any]:
-    with make_client(sqlite_url) as c:
-        yield c
 
 
 def test_bad_requests_answer_a_clear_4xx(client: Any) -> None:

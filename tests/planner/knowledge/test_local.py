@@ -59,11 +59,15 @@ def _shelf_request(client: CpkbClient, kb: str) -> SuggestIn:
     )
 
 
+def _surrogates(client: CpkbClient, kb: str) -> LocalSurrogates:
+    return LocalSurrogates(lambda ids, known: client.models(kb, ids, known))
+
+
 def test_a_local_suggestion_is_what_the_service_answers(live_kb):
     _stock(live_kb)
     with CpkbClient(live_kb.url) as client:
         request = _shelf_request(client, live_kb.name)
-        local = LocalSurrogates(lambda ids, known: client.models(live_kb.name, ids, known))
+        local = _surrogates(client, live_kb.name)
         mine = local.suggest(request, rollout=0, stored=0)
         served = client.suggest(live_kb.name, request)
     assert mine.method == "mpf-local" and local.fetches == 1
@@ -75,7 +79,7 @@ def test_own_points_weigh_in_before_the_next_fetch(live_kb):
     _stock(live_kb)
     with CpkbClient(live_kb.url) as client:
         request = _shelf_request(client, live_kb.name)
-        local = LocalSurrogates(lambda ids, known: client.models(live_kb.name, ids, known))
+        local = _surrogates(client, live_kb.name)
         first = local.suggest(request, rollout=0, stored=0)
         type_id = min(first.p_feasible, key=first.p_feasible.get)
         constraint = next(c for c in request.constraints if c.type_id == type_id)
@@ -97,7 +101,7 @@ def test_served_points_stay_pending_until_a_point_answers_them(live_kb):
     _stock(live_kb)
     with CpkbClient(live_kb.url) as client:
         request = _shelf_request(client, live_kb.name)
-        local = LocalSurrogates(lambda ids, known: client.models(live_kb.name, ids, known))
+        local = _surrogates(client, live_kb.name)
         first = local.suggest(request, rollout=0, stored=0)
         assert first.n_pending == 0 and local._pending.count("local") == 4
         again = local.suggest(request, rollout=0, stored=0)
