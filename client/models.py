@@ -52,11 +52,16 @@ class CategoricalDomain(_Strict):
 
 
 class ContinuousDomain(_Strict):
-    """A box: `low[i] < high[i]`, finite, 1 to MAX_DIM dimensions."""
+    """A box: `low[i] < high[i]`, finite, 1 to MAX_DIM dimensions.
+
+    `frame` optionally names the space the values are positions in (a placement's region):
+    where a type has two decisions in one frame, its surrogate also sees how far apart they are,
+    so that "box 3 collides with box 1" is learned once, not anew for each place of box 1."""
 
     kind: Literal["continuous"] = "continuous"
     low: list[float] = Field(min_length=1, max_length=MAX_DIM)
     high: list[float] = Field(min_length=1, max_length=MAX_DIM)
+    frame: Label | None = None
 
     @model_validator(mode="after")
     def _check(self) -> ContinuousDomain:

@@ -195,12 +195,21 @@ def _check_isomorphic(type_id: str, new_json: str, stored_json: str) -> None:
         )
     stored_space = {n.label: n.domain for n in stored.nodes if n.role == "decision"}
     for node in new.nodes:
-        if node.role == "decision" and node.domain != stored_space.get(node.label):
+        if node.role == "decision" and not _same_values(node.domain, stored_space.get(node.label)):
             raise TypeConflict(
                 f"type {type_id}: decision {node.label!r} has domain "
                 f"{node.domain.model_dump() if node.domain else None}, but the stored type has "
                 f"{stored_space[node.label].model_dump() if stored_space.get(node.label) else None}"
             )
+
+
+def _same_values(new: Domain | None, stored: Domain | None) -> bool:
+    """Equal domains, but for a continuous `frame`: a frame says how the surrogate encodes the
+    values, not which values there are, and a type stored without one (before frames existed)
+    keeps its own encoding rather than refusing the planners that now send one."""
+    if isinstance(new, ContinuousDomain) and isinstance(stored, ContinuousDomain):
+        return new.model_copy(update={"frame": None}) == stored.model_copy(update={"frame": None})
+    return new == stored
 
 
 def check_x(x: dict[str, Value], space: dict[str, Domain]) -> None:

@@ -45,7 +45,7 @@ class AvoidSet:
         pending: Sequence[Mapping[str, Value]],
     ) -> None:
         self.free = dict(free)
-        self.encoder = SpaceEncoder(free)
+        self.encoder = SpaceEncoder(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.width) for v in self.encoder.vars}
         for i, point in enumerate(exclude):
             if not any(name in point for name in self.free):
@@ -61,7 +61,7 @@ class AvoidSet:
             by_names.setdefault(names, []).append(point)
         groups = []
         for names, members in by_names.items():
-            sub = SpaceEncoder({name: self.free[name] for name in names})
+            sub = SpaceEncoder({name: self.free[name] for name in names}, separations=False)
             cols = sub.columns(members, where=where)
             mask = np.concatenate([self.blocks[name] for name in names])
             walls = np.concatenate(

@@ -6,6 +6,12 @@ a float array `(n, d)` in the domain's own units for a continuous one. `SpaceEnc
 columns into the GP input `Z` of shape `(n, D)`: continuous values scaled to [0, 1]; a categorical
 one-hot, or its declared `embedding` (e.g. a grasp direction's unit approach vector, rescaled as a
 whole into [0, 1] so that angles are kept). A categorical is never an ordinal code.
+
+Two continuous variables in one `frame` (two placements in one tray) add their *separation*,
+`|z_a - z_b|` per dimension, after the variables' own columns: a collision between them is a
+function of how far apart they are, which a kernel on the absolute places alone would have to
+learn anew for every place of the first (measured on pack's points: held-out AUC of a type fitted
+on other runs' points, 0.07-0.82 without, 0.80-0.97 with).
 """
 
 from __future__ import annotations
@@ -59,9 +65,12 @@ def _categorical_table(domain: CategoricalDomain) -> np.ndarray:
 
 
 class SpaceEncoder:
-    """Encodes points of one decision space (variables in the given order) into `[0, 1]^D`."""
+    """Encodes points of one decision space (variables in the given order) into `[0, 1]^D`.
 
-    def __init__(self, space: Mapping[str, Domain]) -> None:
+    `separations=False` leaves out the separation columns: for distances between candidates of
+    a search space, where every column is a variable of its own."""
+
+    def __init__(self, space: Mapping[str, Domain], *, separations: bool = True) -> None:
         self.space: dict[str, Domain] = dict(space)
         self.vars: list[_Var] = []
         start = 0
@@ -73,7 +82,8 @@ class SpaceEncoder:
                 var = _Var(name, domain, start, len(domain.low))
             self.vars.append(var)
             start += var.width
-        self.dim = start
+        self.separations = _framed_pairs(self.vars) if separations else []
+        self.dim = start + sum(a.width for a, _ in self.separations)
 
     # --- points <-> columns -------------------------------------------------------------
     def columns(self, points: Sequence[Mapping[str, Value]], where: str = "") -> Columns:
@@ -115,6 +125,12 @@ class SpaceEncoder:
                 z[:, block] = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (
                     high - low
                 )
+        start = self.dim - sum(a.width for a, _ in self.separations)
+        for a, b in self.separations:
+            z[:, start : start + a.width] = np.abs(
+                z[:, a.start : a.start + a.width] - z[:, b.start : b.start + b.width]
+            )
+            start += a.width
         return z
 
     def decode(self, z: np.ndarray) -> Columns:
@@ -133,6 +149,17 @@ class SpaceEncoder:
 
     def encode_points(self, points: Sequence[Mapping[str, Value]]) -> np.ndarray:
         return self.encode(self.columns(points))
+
+
+def _framed_pairs(variables: Sequence[_Var]) -> list[tuple[_Var, _Var]]:
+    """The pairs of continuous variables of one frame and width, in the space's order."""
+    framed = [v for v in variables if isinstance(v.domain, ContinuousDomain) and v.domain.frame]
+    return [
+        (a, b)
+        for i, a in enumerate(framed)
+        for b in framed[i + 1 :]
+        if a.domain.frame == b.domain.frame and a.width == b.width  # type: ignore[union-attr]
+    ]
 
 
 def _field(where: str, i: int, name: str) -> str:

@@ -246,16 +246,27 @@ class KnowledgeSession:
     # -- guiding the search -------------------------------------------------------------------
 
     def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
-        """The active types whose decision vertexes include this variable: with earlier ones
-        (fixed on this path) and, with `lookahead`, later ones (optimised jointly, so that this
-        decision leaves a feasible continuation: a grasp that no placement can follow is
-        avoided at the grasp)."""
+        """The active types that constrain this decision: those whose decision vertexes include
+        it, with earlier ones (fixed on this path); with `lookahead`, also later ones (optimised
+        jointly, so that this decision leaves a feasible continuation: a grasp that no placement
+        can follow is avoided at the grasp), and then every type on those later decisions, so
+        that the continuation is feasible as a whole (pack's first box leaves room for the second
+        and the third side by side, not for each of them on the same spot)."""
         known = {*path, var}
+        chosen = [a for a in self._active.values() if var in a.vars]
+        if self.lookahead:
+            ahead = {v for a in chosen for v in a.vars} - known
+            rest = [a for a in self._active.values() if var not in a.vars]
+            while ahead:
+                joined = [a for a in rest if a.vars & ahead]
+                rest = [a for a in rest if not a.vars & ahead]
+                chosen += joined
+                ahead = {v for a in joined for v in a.vars} - known - ahead
+        else:
+            chosen = [a for a in chosen if a.vars <= known]
         seen: set[tuple[str, tuple[tuple[str, str], ...]]] = set()
         constraints: list[Constraint] = []
-        for activation in self._active.values():
-            if var not in activation.vars or not (self.lookahead or activation.vars <= known):
-                continue
+        for activation in chosen:
             if activation.stored_with > self.poster.done:
                 # A type met in this run exists once its first point is stored: wait for that
                 # batch, so that when a type starts guiding does not depend on timing.

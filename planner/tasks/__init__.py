@@ -45,9 +45,10 @@ def grasp_domain() -> CategoricalDomain:
     )
 
 
-def pose_domain() -> ContinuousDomain:
-    """A placement seed (x, y, yaw) in [0, 1]^3, mapped into the region by the world."""
-    return ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0])
+def pose_domain(region: str | None = None) -> ContinuousDomain:
+    """A placement seed (x, y, yaw) in [0, 1]^3, mapped into `region` by the world (its frame:
+    two seeds in one region are places side by side)."""
+    return ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], frame=region)
 
 
 def list_tasks() -> list[Task]:
@@ -82,7 +83,7 @@ def build_skeleton(task: Task) -> Skeleton:
             decision = DecisionVar(
                 var=call.outputs[0],
                 kind="#dir" if grasp else "#pose",
-                domain=grasp_domain() if grasp else pose_domain(),
+                domain=grasp_domain() if grasp else pose_domain(call.args[1]),
                 producer=call,
             )
         layers.append(Layer(kind=spec.kind, calls=calls, decision=decision))  # type: ignore[arg-type]

@@ -57,6 +57,18 @@ def test_domain_is_not_hashed_but_checked() -> None:
         check_same_type(b, a.canonical)
 
 
+def test_a_frame_added_to_a_stored_type_is_the_same_type() -> None:
+    """A type stored before frames existed still answers planners that now send one."""
+    stored = resolve(make_graph(pose_domain={"kind": "continuous", "low": [0], "high": [1]}))
+    framed = {"kind": "continuous", "low": [0], "high": [1], "frame": "region5"}
+    resolved = resolve(make_graph(pose_domain=framed))
+    assert resolved.type_id == stored.type_id
+    check_same_type(resolved, stored.canonical)
+    moved = {"kind": "continuous", "low": [0], "high": [2], "frame": "region5"}
+    with pytest.raises(TypeConflict, match="'#pose'"):
+        check_same_type(resolve(make_graph(pose_domain=moved)), stored.canonical)
+
+
 def test_collision_pair_shares_a_hash_but_conflicts() -> None:
     six, threes = (resolve(g) for g in collision_pair())
     assert six.type_id == threes.type_id

@@ -75,3 +75,34 @@ def test_same_domain_compares_values_not_embeddings() -> None:
     assert not same_domain(space(True)["dir"], CategoricalDomain(choices=DIRS[:4]))
     assert not same_domain(space(True)["pose"], ContinuousDomain(low=[0, 0, 0], high=[1, 1, 1]))
     assert not same_domain(space(True)["pose"], space(True)["dir"])
+
+
+def framed_space(second_frame: str | None) -> dict:
+    return {
+        "a": ContinuousDomain(low=[0.0, 0.0], high=[1.0, 2.0], frame="tray"),
+        "dir": CategoricalDomain(choices=DIRS),
+        "b": ContinuousDomain(low=[0.0, 0.0], high=[1.0, 2.0], frame=second_frame),
+    }
+
+
+def test_two_places_in_one_frame_add_their_separation() -> None:
+    encoder = SpaceEncoder(framed_space("tray"))
+    points = [
+        {"a": [0.2, 1.0], "dir": "top", "b": [0.5, 0.2]},
+        {"a": [1.0, 0.0], "dir": "top", "b": [0.0, 2.0]},
+    ]
+    z = encoder.encode(encoder.columns(points))
+    assert encoder.dim == 2 + 5 + 2 + 2
+    np.testing.assert_allclose(z[:, -2:], [[0.3, 0.4], [1.0, 1.0]])
+    back = encoder.points(encoder.decode(z))
+    np.testing.assert_allclose(back[1]["b"], [0.0, 2.0])
+    assert back[0]["dir"] == "top"
+
+
+@pytest.mark.parametrize("second_frame", [None, "shelf"])
+def test_places_in_different_frames_add_nothing(second_frame: str | None) -> None:
+    assert SpaceEncoder(framed_space(second_frame)).dim == 9
+
+
+def test_search_distances_leave_separations_out() -> None:
+    assert SpaceEncoder(framed_space("tray"), separations=False).dim == 9

@@ -11,6 +11,8 @@ from planner.run import run_plan
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_reachable
 from planner.search.samplers.quasi_random import QuasiRandomSampler
+from planner.tasks import build_skeleton, load_task
+from planner.world import CheckResult, Culprit, TransitionOutcome
 
 
 def blocked_grasp_type(client: CpkbClient, kb: str, task: str) -> str:
@@ -108,3 +110,48 @@ def test_an_unreachable_knowledge_base_is_a_clear_error():
 
     with pytest.raises(ServiceUnavailable):
         run_plan("analytic:desk", "cp-bo", 0, kb_url="http://127.0.0.1:9", max_rollouts=5)
+
+
+class _PackSkeletonOnly:
+    """The pack task's skeleton and name: the session reads no more of a world."""
+
+    def __init__(self) -> None:
+        self.name = "pack"
+        self.skeleton = build_skeleton(load_task("pack"))
+
+
+def pack_session(live_kb, client: CpkbClient, *, lookahead: bool) -> KnowledgeSession:
+    """A session that met the three collisions between boxes in the tray."""
+    world = _PackSkeletonOnly()
+    session = KnowledgeSession(client, live_kb.name, world, background=False, lookahead=lookahead)
+    for index, culprit in ((1, "body1"), (2, "body1"), (2, "body2")):
+        place = world.skeleton.transitions[index].calls[3]  # Inv-kin at the tray
+        failed = CheckResult(place, False, culprits=(Culprit(culprit, 0.01),))
+        session.on_transition(index, PACK_BINDINGS, TransitionOutcome((failed,)), 1)
+    session.on_rollout_end(1)
+    return session
+
+
+PACK_BINDINGS = {"#pose1": [0.5, 0.5, 0.5], "#pose2": [0.2, 0.2, 0.5], "#pose3": [0.8, 0.8, 0.5]}
+
+
+def test_looking_ahead_takes_in_every_type_on_the_later_decisions(live_kb):
+    """At the first box, the type between the second and the third box counts too: the first
+    place must leave room for both of them side by side."""
+    with CpkbClient(live_kb.url) as client:
+        session = pack_session(live_kb, client, lookahead=True)
+        ahead = session.constraints_at("#pose1", {})
+        pairs = sorted(sorted(c.bind.values()) for c in ahead)
+        assert pairs == [["#pose1", "#pose2"], ["#pose1", "#pose3"], ["#pose2", "#pose3"]]
+        first = session.skeleton.decisions[0]
+        answer = session.suggest(first, {}, [], ahead, seed=0)
+        assert answer is not None and set(answer.x) == {"#pose1", "#pose2", "#pose3"}
+        assert len(session.constraints_at("#pose2", {"#pose1": PACK_BINDINGS["#pose1"]})) == 3
+        session.close()
+        paper_rule = pack_session(live_kb, client, lookahead=False)
+        assert paper_rule.constraints_at("#pose1", {}) == []
+        at_third = paper_rule.constraints_at(
+            "#pose3", {k: PACK_BINDINGS[k] for k in ("#pose1", "#pose2")}
+        )
+        assert len(at_third) == 2
+        paper_rule.close()

@@ -42,6 +42,9 @@ def test_every_shipped_task_loads_with_its_skeleton() -> None:
     desk = build_skeleton(tasks["desk"])
     assert desk.transitions[0].calls[0].args == ("body", "pose0", "#dir1")
     assert desk.decisions[0].domain.choices == ["front", "right", "top", "back", "left"]
+    regrasp = build_skeleton(tasks["regrasp"]).decisions
+    assert [d.domain.frame for d in regrasp if d.kind == "#pose"] == ["region3", "region2"]
+    assert {d.domain.frame for d in build_skeleton(tasks["pack"]).decisions} == {"region5"}
 
 
 def test_pack_target_region_has_a_quarter_less_area_than_the_source() -> None:
