@@ -1,14 +1,15 @@
 """What one CP-BO suggestion costs, on the requests of a real planner run.
 
-Runs `desk` with `cp-bo` (PyBullet, an embedded service on a temporary SQLite file) and records
-every suggest request it makes, waits for the surrogates to be fitted, then replays the requests
-in-process against the same knowledge base with several optimiser settings (raw samples only,
-or with 1, 2, 3, 5 or 20 NSGA-II generations): the median latency of the service's `suggest`
-and the mean MPF of the answers. Also times the same requests over HTTP, to show the transport.
+Runs `desk` (or `--task`) with `cp-bo` (PyBullet, an embedded service on a temporary SQLite
+file) and records every suggest request it makes, waits for the surrogates to be fitted, then
+replays the requests in-process against the same knowledge base with several optimiser settings
+(raw samples only, or with 1, 2, 3, 5 or 20 NSGA-II generations): the median latency of the
+service's `suggest` and the mean MPF of the answers. Also times the same requests over HTTP, to
+show the transport.
 
-    .venv/bin/python benchmarks/suggest_cost.py [--seed 1] [--out benchmarks/results]
+    .venv/bin/python benchmarks/suggest_cost.py [--task desk] [--seed 1] [--out benchmarks/results]
 
-Writes <out>/suggest_cost.json.
+Writes <out>/suggest_cost.json (desk) or <out>/suggest_cost-<task>.json.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ class RecordingClient(CpkbClient):
         return super().suggest(kb, request)
 
 
-def record_run(url: str, seed: int) -> list[SuggestIn]:
+def record_run(url: str, task: str, seed: int) -> list[SuggestIn]:
     """One planner run whose client records its requests (`run_plan` imports the client class
     from the `client` package when it runs, so swapping it there is enough)."""
     import client as client_package
@@ -62,7 +63,7 @@ def record_run(url: str, seed: int) -> list[SuggestIn]:
     saved = client_package.CpkbClient
     client_package.CpkbClient = recording  # type: ignore[assignment,misc]
     try:
-        run_plan("desk", "cp-bo", seed, kb_url=url, kb="bench", suggest_in="service")
+        run_plan(task, "cp-bo", seed, kb_url=url, kb="bench", suggest_in="service")
     finally:
         client_package.CpkbClient = saved  # type: ignore[misc]
     return [request for c in made for request in c.requests]
@@ -113,13 +114,14 @@ def over_http(url: str, requests: list[SuggestIn]) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="desk")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="cpkb-suggest-") as tmp:
         db_url = f"sqlite:///{Path(tmp) / 'kb.db'}"
         with embedded_service(db_url) as url:
-            requests = record_run(url, args.seed)
+            requests = record_run(url, args.task, args.seed)
             time.sleep(10)  # the service's own fits settle before it is timed
             http_ms = over_http(url, requests)
         if not requests:
@@ -127,14 +129,16 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         rows = replay(db_url, requests)
     result = {
-        "task": "desk",
+        "task": args.task,
         "seed": args.seed,
         "requests": len(requests),
         "http_median_ms": http_ms,
         "in_process": rows,
     }
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "suggest_cost.json"
+    path = args.out / (
+        "suggest_cost.json" if args.task == "desk" else f"suggest_cost-{args.task}.json"
+    )
     path.write_text(json.dumps(result, indent=2) + "\n")
     print(json.dumps(result, indent=2))
     print(f"wrote {path}")
