@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -58,6 +59,7 @@ def test_demo_runs_on_the_analytic_worlds(kb_service, capsys):
     out = capsys.readouterr().out
     assert code == 0
     assert "desk quasi-random" in out and "Where to look next" in out
+    assert re.search(r"\d+%\s+(fewer|more)\s+with\s+knowledge", out)
 
 
 @pytest.mark.slow
