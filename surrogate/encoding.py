@@ -11,7 +11,7 @@ Two continuous variables in one `frame` (two placements in one tray) add their *
 `|z_a - z_b|` per dimension, after the variables' own columns: a collision between them is a
 function of how far apart they are, which a kernel on the absolute places alone would have to
 learn anew for every place of the first (measured on pack's points: held-out AUC of a type fitted
-on other runs' points, 0.07-0.82 without, 0.80-0.97 with).
+on other runs' points, 0.07-0.89 without, 0.80-0.97 with).
 """
 
 from __future__ import annotations
@@ -82,6 +82,7 @@ class SpaceEncoder:
                 var = _Var(name, domain, start, len(domain.low))
             self.vars.append(var)
             start += var.width
+        self.base_dim = start  # the variables' own columns; the separations follow them
         self.separations = _framed_pairs(self.vars) if separations else []
         self.dim = start + sum(a.width for a, _ in self.separations)
 
@@ -125,7 +126,7 @@ class SpaceEncoder:
                 z[:, block] = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (
                     high - low
                 )
-        start = self.dim - sum(a.width for a, _ in self.separations)
+        start = self.base_dim
         for a, b in self.separations:
             z[:, start : start + a.width] = np.abs(
                 z[:, a.start : a.start + a.width] - z[:, b.start : b.start + b.width]

@@ -255,13 +255,15 @@ class KnowledgeSession:
         known = {*path, var}
         chosen = [a for a in self._active.values() if var in a.vars]
         if self.lookahead:
-            ahead = {v for a in chosen for v in a.vars} - known
+            reached = {v for a in chosen for v in a.vars} | known
+            ahead = reached - known
             rest = [a for a in self._active.values() if var not in a.vars]
             while ahead:
                 joined = [a for a in rest if a.vars & ahead]
                 rest = [a for a in rest if not a.vars & ahead]
                 chosen += joined
-                ahead = {v for a in joined for v in a.vars} - known - ahead
+                ahead = {v for a in joined for v in a.vars} - reached
+                reached |= ahead
         else:
             chosen = [a for a in chosen if a.vars <= known]
         seen: set[tuple[str, tuple[tuple[str, str], ...]]] = set()
