@@ -10,6 +10,7 @@ variables only, so "far from the existing children" means far in the node's own 
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -45,14 +46,36 @@ class AvoidSet:
         pending: Sequence[Mapping[str, Value]],
     ) -> None:
         self.free = dict(free)
+        self.fixed = dict(fixed)
         self.encoder = SpaceEncoder(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.width) for v in self.encoder.vars}
-        for i, point in enumerate(exclude):
-            if not any(name in point for name in self.free):
-                raise EncodingError(f"exclude[{i}]", "gives none of the free variables")
+        self._encoders: dict[tuple[str, ...], SpaceEncoder] = {}
+        self._check_exclude(exclude)
         self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
         fitting = [p for p in pending if _agrees(p, fixed) and self._fits(p)]
         self.pending_groups = self._groups(fitting, "pending")
+
+    def excluding(self, exclude: Sequence[Mapping[str, Value]]) -> AvoidSet:
+        """This set with `exclude` excluded too; the pending points are not read again (a
+        batch adds its chosen points one at a time)."""
+        self._check_exclude(exclude)
+        wider = copy.copy(self)
+        wider.groups = [
+            *self.groups,
+            *self._groups([p for p in exclude if _agrees(p, self.fixed)], "exclude"),
+        ]
+        return wider
+
+    def _check_exclude(self, exclude: Sequence[Mapping[str, Value]]) -> None:
+        for i, point in enumerate(exclude):
+            if not any(name in point for name in self.free):
+                raise EncodingError(f"exclude[{i}]", "gives none of the free variables")
+
+    def _sub_encoder(self, names: tuple[str, ...]) -> SpaceEncoder:
+        if names not in self._encoders:
+            domains = {name: self.free[name] for name in names}
+            self._encoders[names] = SpaceEncoder(domains, separations=False)
+        return self._encoders[names]
 
     def _groups(self, points: Sequence[Mapping[str, Value]], where: str) -> list[_Group]:
         by_names: dict[tuple[str, ...], list[Mapping[str, Value]]] = {}
@@ -61,7 +84,7 @@ class AvoidSet:
             by_names.setdefault(names, []).append(point)
         groups = []
         for names, members in by_names.items():
-            sub = SpaceEncoder({name: self.free[name] for name in names}, separations=False)
+            sub = self._sub_encoder(names)
             cols = sub.columns(members, where=where)
             mask = np.concatenate([self.blocks[name] for name in names])
             walls = np.concatenate(
@@ -81,7 +104,7 @@ class AvoidSet:
         if not names:
             return False
         try:
-            SpaceEncoder({name: self.free[name] for name in names}).columns([point])
+            self._sub_encoder(tuple(names)).columns([point])
         except EncodingError:
             return False
         return True

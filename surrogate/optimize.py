@@ -150,14 +150,26 @@ class _Scorer:
         self.genome = genome
         self.avoid = avoid
         self.config = config
+        self._known: dict[bytes, float] = {}  # genes row -> acquisition, for this request
+
+    def raw(self, genes: np.ndarray) -> np.ndarray:
+        """`(n,)` the acquisition at each row of `genes`. Rows scored before are not scored
+        again: NSGA-II's start population and survivors are rows of earlier evaluations, and
+        one GP evaluation per term costs more than the whole of the rest."""
+        keys = [row.tobytes() for row in genes]
+        todo = [i for i, key in enumerate(keys) if key not in self._known]
+        if todo:
+            cols = self.genome.columns(genes[todo])
+            fresh = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
+            for i, value in zip(todo, np.broadcast_to(fresh, (len(todo),)), strict=True):
+                self._known[keys[i]] = float(value)
+        return np.fromiter((self._known[key] for key in keys), dtype=float, count=len(keys))
 
     def evaluate(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`(n,)` each: the score, the acquisition alone, and the normalised distance to the
         nearest point to avoid (0 with none)."""
-        cols = self.genome.columns(genes)
-        raw = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
-        raw = np.broadcast_to(raw, (len(genes),))
-        score, spread = self.explore_terms(raw, cols, self.avoid)
+        raw = self.raw(genes)
+        score, spread = self.explore_terms(raw, self.genome.columns(genes), self.avoid)
         return score, raw, spread
 
     def explore_terms(
@@ -260,15 +272,12 @@ def maximize_batch(
             raise SpaceExhausted("every point of the space is excluded")
         genes = np.random.default_rng(seed).random((config.pop_size, genome.n_genes))
     cols = genome.columns(genes)
-    raw = np.broadcast_to(
-        np.asarray(acquisition({**cols, **fixed_cols}), dtype=float), (len(genes),)
-    )
+    raw = scorer.raw(genes)
     keys = [name for name in free if distinct is None or name in distinct] or list(free)
-    chosen: list[Mapping[str, Value]] = list(exclude)
     found: list[Suggestion] = []
     while len(found) < n:
         if found:
-            avoid = AvoidSet(free, fixed_in_space, chosen, pending)
+            avoid = avoid.excluding([{k: found[-1].x[k] for k in keys}])
         ok = ~avoid.excluded(cols)
         if not ok.any():
             break
@@ -276,7 +285,6 @@ def maximize_batch(
         best = _select(ok, score, raw, spread, config.margin, config.margin_abs)
         x = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
         found.append(Suggestion({k: x[k] for k in space}, float(raw[best])))
-        chosen.append({k: x[k] for k in keys})
     return found
 
 
@@ -352,7 +360,9 @@ def _nsga2(
         eliminate_duplicates=config.eliminate_duplicates,
     )
     problem = _Problem(scorer)
-    result = minimize(problem, algorithm, ("n_gen", config.n_gen), seed=seed, verbose=False)
+    result = minimize(
+        problem, algorithm, ("n_gen", config.n_gen), copy_algorithm=False, seed=seed, verbose=False
+    )
     return result.pop.get("X")
 
 

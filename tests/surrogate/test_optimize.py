@@ -9,7 +9,13 @@ from client.models import CategoricalDomain, ContinuousDomain
 from surrogate.acquisition import MPF, ConstraintTerm, ucb
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_regression
-from surrogate.optimize import OptimizerConfig, SpaceExhausted, maximize, space_filling
+from surrogate.optimize import (
+    OptimizerConfig,
+    SpaceExhausted,
+    maximize,
+    maximize_batch,
+    space_filling,
+)
 
 DIRS = ["front", "right", "top", "back", "left"]
 SPACE = {
@@ -153,3 +159,34 @@ def test_children_of_a_flat_acquisition_fill_the_inside_of_the_box() -> None:
     assert near_a_wall.mean() < 0.25
     middle = (np.abs(poses - 0.5) < 0.25).all(axis=1)
     assert middle.sum() >= 2
+
+
+def test_a_batch_scores_each_candidate_once(mpf: MPF) -> None:
+    """NSGA-II's start population and survivors are rows it was given or made: the
+    acquisition (a GP per term) is run on each distinct row once per request."""
+    scored: list[np.ndarray] = []
+
+    def counting(cols: dict) -> np.ndarray:
+        scored.append(np.column_stack([cols["dir"], cols["pose"]]))
+        return mpf(cols)
+
+    config = OptimizerConfig(pop_size=24, n_gen=3, raw_samples=128)
+    found = maximize_batch(counting, SPACE, seed=4, config=config, n=3)
+    rows = np.vstack(scored)
+    assert len(found) == 3
+    assert len(rows) == len(np.unique(rows, axis=0))
+    assert len(rows) <= config.raw_samples + (config.n_gen - 1) * config.pop_size
+
+
+def test_a_batch_answers_as_if_each_point_were_excluded_in_turn(mpf: MPF) -> None:
+    children = [{"dir": "front", "pose": [0.8, 0.2]}, {"dir": "left", "pose": [0.7, 0.1]}]
+    config = OptimizerConfig(margin=0.1, margin_abs=0.025)
+    batch = maximize_batch(mpf, SPACE, exclude=children, seed=3, config=config, n=3)
+    one_by_one = []
+    for _ in range(3):
+        chosen = [c.x for c in one_by_one]
+        best = maximize_batch(mpf, SPACE, exclude=children + chosen, seed=3, config=config)
+        one_by_one.append(best[0])
+    assert batch[0].x == one_by_one[0].x
+    assert all(b.x not in children for b in batch)
+    assert len({str(b.x) for b in batch}) == 3

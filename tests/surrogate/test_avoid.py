@@ -1,0 +1,40 @@
+"""The points a suggestion keeps away from: widening a set by more excluded points."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from client.models import CategoricalDomain, ContinuousDomain
+from surrogate.avoid import AvoidSet
+from surrogate.encoding import SpaceEncoder
+
+SPACE = {
+    "dir": CategoricalDomain(choices=["front", "top", "left"]),
+    "pose": ContinuousDomain(low=[0.0, 0.0], high=[2.0, 1.0]),
+}
+EXCLUDE = [{"dir": "top", "pose": [1.0, 0.5]}, {"pose": [0.2, 0.9]}]
+PENDING = [{"dir": "left", "pose": [1.5, 0.1]}]
+MORE = [{"dir": "front", "pose": [0.4, 0.4]}, {"dir": "top"}]
+
+
+def candidates() -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    points = [{"dir": "top", "pose": [1.0, 0.5]}, {"dir": "front", "pose": [0.4, 0.4]}]
+    points += [
+        {"dir": ["front", "top", "left"][rng.integers(3)], "pose": [2 * rng.random(), rng.random()]}
+        for _ in range(40)
+    ]
+    return SpaceEncoder(SPACE).columns(points)
+
+
+def test_excluding_more_points_equals_a_set_built_with_them() -> None:
+    base = AvoidSet(SPACE, {}, EXCLUDE, PENDING)
+    wider = base.excluding(MORE)
+    built = AvoidSet(SPACE, {}, EXCLUDE + MORE, PENDING)
+    cols = candidates()
+    z = wider.encoder.encode(cols)
+    np.testing.assert_array_equal(wider.excluded(cols), built.excluded(cols))
+    np.testing.assert_allclose(wider.spread(z), built.spread(z), atol=1e-7)
+    np.testing.assert_allclose(wider.pending_distances(z), built.pending_distances(z))
+    assert wider.excluded(cols)[:2].all()
+    assert not base.excluded(cols)[1]
