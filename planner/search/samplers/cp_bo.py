@@ -5,6 +5,11 @@ suggestion: earlier decisions of the path are fixed, later ones are optimised jo
 session's lookahead), and the siblings are excluded. The answer's MPF goes to the tree with the
 value (a `Proposal`), so a node the knowledge base has given up on lets its parent widen. Where
 no type is active, or the service cannot answer, the node expands like the quasi-random baseline.
+
+A looked-ahead answer is a whole continuation: the later decisions that make this value's MPF.
+A node that the continuation leads to (a new child's decision, with the values above it) takes
+its first value from it instead of asking, as long as its own constraints are among those the
+answer weighed: a fresh descent costs one suggestion, not one per decision.
 """
 
 from __future__ import annotations
@@ -35,6 +40,15 @@ class _Batch:
     rollout: int
 
 
+@dataclass(frozen=True)
+class _Continuation:
+    """A later decision's value from an earlier node's looked-ahead answer."""
+
+    weighed: frozenset[tuple[str, tuple[tuple[str, str], ...]]]  # the answer's constraints
+    proposal: Proposal
+    rollout: int
+
+
 class CpBoSampler:
     name = "cp-bo"
 
@@ -44,6 +58,8 @@ class CpBoSampler:
         self.guided = 0
         self.unguided = 0
         self._batches: dict[NodeKey, _Batch] = {}
+        self._continuations: dict[NodeKey, _Continuation] = {}
+        self._order = [d.var for d in knowledge.skeleton.decisions]
 
     def propose(self, ctx: SampleContext) -> Value | Proposal:
         domain = ctx.var.domain
@@ -74,6 +90,8 @@ class CpBoSampler:
         key = _node_key(ctx)
         signature = tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in constraints)
         cached = self._batches.get(key)
+        if cached is None:
+            cached = self._continued(key, ctx, signature)
         if cached is not None:
             cached.proposals = [p for p in cached.proposals if _valid(p.value, ctx)]
         if (
@@ -100,20 +118,57 @@ class CpBoSampler:
         )
         if answer is None:
             return None
+        points = answer.batch or [answer]
         proposals = [
             Proposal(value, point.mpf)
-            for point in answer.batch or [answer]
+            for point in points
             if (value := point.x.get(ctx.var.var)) is not None and _valid(value, ctx)
         ]
+        for point in points:
+            self._remember_continuation(ctx, point.x, point.mpf, frozenset(signature))
         return _Batch(signature, proposals, ctx.rollout)
+
+    def _remember_continuation(
+        self, ctx: SampleContext, x: dict[str, Value], mpf: float, weighed: frozenset
+    ) -> None:
+        """Each later decision that `x` gives, down to the first it does not, for the node it
+        would be decided at (the path extended by `x`'s values above it)."""
+        if ctx.var.var not in x:
+            return
+        path = {**ctx.path, ctx.var.var: x[ctx.var.var]}
+        for var in self._order[self._order.index(ctx.var.var) + 1 :]:
+            if var not in x:
+                return
+            key = _key(var, path)
+            if key not in self._batches and key not in self._continuations:
+                self._continuations[key] = _Continuation(
+                    weighed, Proposal(x[var], mpf), ctx.rollout
+                )
+            path[var] = x[var]
+
+    def _continued(self, key: NodeKey, ctx: SampleContext, signature: Signature) -> _Batch | None:
+        """A fresh node's first value from an earlier answer's continuation, if that answer
+        weighed every constraint of this node and is recent enough."""
+        continuation = self._continuations.pop(key, None)
+        if (
+            continuation is None
+            or not set(signature) <= continuation.weighed
+            or ctx.rollout - continuation.rollout > BATCH_MAX_AGE
+        ):
+            return None
+        return _Batch(signature, [continuation.proposal], continuation.rollout)
 
     def close(self) -> None:
         self._batches.clear()
+        self._continuations.clear()
 
 
 def _node_key(ctx: SampleContext) -> NodeKey:
-    path = tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in ctx.path.items()))
-    return ctx.var.var, path
+    return _key(ctx.var.var, ctx.path)
+
+
+def _key(var: str, path: dict[str, Value]) -> NodeKey:
+    return var, tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in path.items()))
 
 
 def _valid(value: Value, ctx: SampleContext) -> bool:

@@ -98,3 +98,56 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
         sampler.propose_untried(later)
         assert session.stats.suggestions == 4  # an old batch is asked for anew
         session.close()
+
+
+def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_kb):
+    """The grasp's suggestion looks ahead to the placement: the placement node under a
+    suggested grasp expands first with the placement that answer chose, for no request; its
+    next expansion asks. A child under a grasp the answer did not give has no continuation."""
+    import numpy as np
+
+    from planner.knowledge import KnowledgeSession
+    from planner.search import PWUCT
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import Proposal, SampleContext
+    from planner.search.samplers.cp_bo import CpBoSampler
+    from planner.search.samplers.quasi_random import QuasiRandomSampler
+
+    with CpkbClient(live_kb.url) as client:
+        world = analytic_world("desk")
+        stock = KnowledgeSession(client, live_kb.name, world, background=False)
+        PWUCT(world, QuasiRandomSampler(), seed=0, observer=stock).run(40, stop_at_first=False)
+        stock.close()
+        wait_for_fits(client, live_kb.name)
+        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        session.prematch()
+        sampler = CpBoSampler(session)
+        grasp, pose = world.skeleton.decisions
+        rng = np.random.default_rng(0)
+        assert pose.var in {
+            v for c in session.constraints_at(grasp.var, {}) for v in c.bind.values()
+        }
+        answered: list[dict] = []
+        asked = session.suggest
+
+        def recording(*args, **kwargs):
+            answer = asked(*args, **kwargs)
+            answered.extend(point.x for point in answer.batch or [answer])
+            return answer
+
+        session.suggest = recording
+        chosen = sampler.propose(SampleContext(grasp, {}, (), (), (), 0, 1, rng))
+        assert isinstance(chosen, Proposal) and session.stats.suggestions == 1
+        grasp_batch = list(answered)
+        path = {grasp.var: chosen.value}
+        first = sampler.propose(SampleContext(pose, path, (), (), (), 1, 1, rng))
+        assert session.stats.suggestions == 1
+        assert first.value == next(x[pose.var] for x in grasp_batch if x[grasp.var] == chosen.value)
+        second = sampler.propose(SampleContext(pose, path, (first.value,), (), (), 1, 2, rng))
+        assert session.stats.suggestions == 2 and second.value != first.value
+        other = next(
+            c for c in grasp.domain.choices if c not in {x[grasp.var] for x in grasp_batch}
+        )
+        sampler.propose(SampleContext(pose, {grasp.var: other}, (), (), (), 1, 2, rng))
+        assert session.stats.suggestions == 3
+        session.close()
