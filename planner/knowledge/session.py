@@ -121,7 +121,7 @@ class KnowledgeSession:
         self._by_check: dict[tuple[int, int], list[tuple[Key, Activation]]] = {}
         self._pending: list[tuple[Key, FailureGraph, dict[str, Value], bool]] = []
         self.local = (
-            LocalSurrogates(lambda ids, known: client.models(kb, ids, known))
+            LocalSurrogates(lambda ids, known: client.models(kb, ids, known), background=background)
             if local and hasattr(client, "models")
             else None
         )
@@ -344,6 +344,8 @@ class KnowledgeSession:
             self.on_rollout_end(self._rollout)
         started = time.perf_counter()
         self.poster.close()
+        if self.local is not None:
+            self.local.close()
         self.stats.kb_s += time.perf_counter() - started
 
     @property

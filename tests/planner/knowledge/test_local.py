@@ -149,3 +149,43 @@ def test_when_a_local_suggestion_fails_the_service_answers(live_kb):
     assert list(session.stats.events) == [
         "local suggestion failed, the service answers instead: 404 Not Found"
     ]
+
+
+def test_a_refresh_runs_in_the_background_and_lands_at_the_next_suggestion(live_kb):
+    """A type in use is fetched anew without holding up the suggestion: while the fetch is
+    under way the model in hand (with this planner's own points) answers; the next suggestion
+    after it finished takes the new snapshot, keeping only the own points posted since."""
+    import threading
+
+    _stock(live_kb)
+    with CpkbClient(live_kb.url) as client:
+        request = _shelf_request(client, live_kb.name)
+        release = threading.Event()
+        calls: list[dict] = []
+
+        def fetch(ids, known):
+            calls.append(dict(known))
+            if len(calls) > 1:
+                assert release.wait(30)
+            return client.models(live_kb.name, ids, {})
+
+        local = LocalSurrogates(fetch)
+        first = local.suggest(request, rollout=0, stored=0)
+        type_id = next(iter(first.p_feasible))
+        constraint = next(c for c in request.constraints if c.type_id == type_id)
+        x = {label: first.x[var] for label, var in constraint.bind.items()}
+        local.note(type_id, x, feasible=False, batch=1)
+        old = local._models[type_id]
+        started = time.perf_counter()
+        local.suggest(request, rollout=3, stored=1)
+        assert time.perf_counter() - started < 5 and local.fetches == 2
+        assert local._models[type_id] is old and local._in_flight is not None
+        local.note(type_id, x, feasible=True, batch=2)
+        release.set()
+        local._in_flight.answer.result(timeout=30)
+        local.suggest(request, rollout=4, stored=2)
+        new = local._models[type_id]
+        local.close()
+    assert new is not old and calls[1][type_id] == old.version
+    assert [batch for batch, _, _ in new.own] == [2]
+    assert local.fetches == 2
