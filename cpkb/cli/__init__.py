@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 COMMAND_MODULES = (
@@ -36,8 +37,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # A SIGTERM (a scheduler's stop, `kill`) unwinds like Ctrl-C, so that an embedded service
+    # and a bench's worker pool are stopped rather than left running (`cpkb serve`'s uvicorn
+    # installs its own handlers).
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         return int(args.handler(args) or 0)
     except CliError as exc:

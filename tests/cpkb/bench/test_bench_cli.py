@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -67,3 +69,54 @@ def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert summary.returncode == 0 and "cp-bo-transfer" in summary.stdout
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads processes from /proc")
+def test_a_terminated_bench_stops_its_embedded_service(tmp_path: Path) -> None:
+    """`kill` (SIGTERM) on a bench unwinds like Ctrl-C: it reports what it has, and its
+    embedded service and its workers stop with it instead of running on."""
+    out = tmp_path / "out"
+    command = [
+        sys.executable, "-m", "cpkb", "bench", "--tasks", "analytic:desk",
+        "--methods", "cp-bo-transfer", "--seeds", "50", "--workers", "1",
+        "--out", str(out), "--quiet",
+    ]  # fmt: skip
+    bench = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while not (out / "runs.jsonl").is_file() or not (out / "runs.jsonl").read_text():
+            assert bench.poll() is None and time.monotonic() < deadline, bench.stderr.read()
+            time.sleep(0.2)
+        children = _children(bench.pid)
+        assert len(children) >= 2  # the service and the pool's worker
+        bench.send_signal(signal.SIGTERM)
+        stdout, _ = bench.communicate(timeout=60)
+        assert bench.returncode == 1  # runs are left: a rerun continues
+        assert "(interrupted: rerun the same command to continue)" in stdout
+    finally:
+        if bench.poll() is None:
+            bench.kill()
+    deadline = time.monotonic() + 30
+    while any(_alive(pid) for pid in children) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(_alive(pid) for pid in children)
