@@ -151,3 +151,61 @@ def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_
         sampler.propose(SampleContext(pose, {grasp.var: other}, (), (), (), 1, 2, rng))
         assert session.stats.suggestions == 3
         session.close()
+
+
+class _ScriptedKnowledge:
+    """The session's side of the sampler, scripted: which types are active at a node, and an
+    answer of `BATCH` grasps (each with a placement) per request."""
+
+    def __init__(self, skeleton) -> None:
+        from planner.knowledge.session import KnowledgeStats
+
+        self.skeleton = skeleton
+        self.stats = KnowledgeStats()
+        self.active: list = []
+
+    def constraints_at(self, var, path):
+        return [c for c in self.active if var in c.bind.values() or not path]
+
+    def suggest(self, var, path, siblings, constraints, seed, *, n=1):
+        from client.models import SuggestedPoint, SuggestOut
+
+        self.stats.suggestions += 1
+        left = [c for c in var.domain.choices if c not in siblings][:n]
+        points = [
+            SuggestedPoint(x={var.var: c, "#pose12": [0.5] * 3}, mpf=0.5, p_feasible={})
+            for c in left
+        ]
+        return SuggestOut(x=points[0].x, mpf=0.5, p_feasible={}, batch=points)
+
+
+def test_a_batch_is_asked_anew_for_a_type_on_its_own_variable_only():
+    """A type met below the grasp, on the placement alone, leaves the grasp's batch as it is
+    (the placement node weighs it); one that binds the grasp voids it."""
+    import numpy as np
+
+    from client.models import Constraint
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import SampleContext
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    grasp = analytic_world("desk").skeleton.decisions[0]
+    knowledge = _ScriptedKnowledge(analytic_world("desk").skeleton)
+    knowledge.active = [Constraint(type_id="both", bind={"#dir": "#dir1", "#pose": "#pose12"})]
+    sampler = CpBoSampler(knowledge)  # type: ignore[arg-type]
+    rng = np.random.default_rng(0)
+    tried: list = []
+
+    def expand() -> None:
+        ctx = SampleContext(grasp, {}, tuple(tried), (), (), 0, 1, rng)
+        tried.append(sampler.propose(ctx).value)
+
+    expand()
+    assert knowledge.stats.suggestions == 1
+    knowledge.active.append(Constraint(type_id="placement", bind={"#pose": "#pose12"}))
+    expand()
+    assert knowledge.stats.suggestions == 1
+    knowledge.active.append(Constraint(type_id="grasp", bind={"#dir": "#dir1"}))
+    expand()
+    assert knowledge.stats.suggestions == 2
+    assert len(set(tried)) == 3
