@@ -5,6 +5,9 @@ new child (the sampler proposes a value and the world runs the following transit
 selects an open child by UCB. A rollout ends at a failed transition (reward `0.1 d/D`, where d
 counts the layers passed and the passed share of the failed layer's checks) or at a
 full binding list that passed every transition (reward `1.1`); the reward is backed up by max.
+Beside it, each child keeps a *score*: the reward with the failed check's own progress added (the
+world's detail `progress`, e.g. how close IK came), backed up by max the same way. UCB ignores
+it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`tree.OUTLOOK_RATIO`).
@@ -31,6 +34,7 @@ from planner.search.tree import (
     DecisionNode,
     add_child,
     backup,
+    backup_score,
     check_alternating,
     close,
     comparable_outlook,
@@ -42,7 +46,9 @@ from planner.search.tree import (
 from planner.world import BindingWorld, TransitionOutcome
 
 _REWARD = attrgetter("reward")
+_SCORE = attrgetter("score")
 _VISITS = attrgetter("visits")
+PROGRESS_CAP = 0.999  # a failed check's progress stays below one passed check
 
 
 class SearchObserver(Protocol):
@@ -168,6 +174,8 @@ class PWUCT:
         r = reward(layers_passed, self.n_layers, child.success)
         self.best_depth = max(self.best_depth, layers_passed / self.n_layers)
         backup(child, r)
+        graded = self._graded_depth(child) if not child.success else None
+        backup_score(child, r if graded is None else reward(graded, self.n_layers, False))
         return {**node.path, node.var.var: child.value} if child.success else {}
 
     def _depth_reached(self, child: ChildNode) -> float:
@@ -180,6 +188,17 @@ class PWUCT:
         passed = sum(check.ok for check in child.outcome.checks)
         return 2 * index + 1 + passed / max(calls, 1)
 
+    def _graded_depth(self, child: ChildNode) -> float:
+        """`_depth_reached` plus the failed check's own progress, its detail `progress` in
+        [0, 1) (the world's measure of how close it came: an IK residual, a penetration), as a
+        share of one check: within the band of the failed check, so it never ranks a child
+        above one that got further. MCTS-BO's target only; the tree's reward ignores it."""
+        failed = child.outcome.failed
+        progress = failed.detail.get("progress", 0.0) if failed is not None else 0.0
+        progress = min(max(float(progress), 0.0), PROGRESS_CAP)
+        calls = len(self.world.skeleton.transitions[child.parent.index].calls)
+        return self._depth_reached(child) + progress / max(calls, 1)
+
     def _context(self, node: DecisionNode) -> SampleContext:
         return SampleContext(
             var=node.var,
@@ -191,6 +210,7 @@ class PWUCT:
             rollout=self.rollout + 1,
             rng=self.rng,
             sibling_matrix=node.value_matrix,
+            sibling_scores=tuple(map(_SCORE, node.children)),
         )
 
     def _better_untried(self, node: DecisionNode) -> Proposal | None:

@@ -52,6 +52,7 @@ class ChildNode:
     outcome: TransitionOutcome
     visits: int = 0
     reward: float = 0.0
+    score: float = 0.0  # `reward` with a failed check's progress; MCTS-BO's target, not UCB's
     next: DecisionNode | None = None
     success: bool = False
     closed: bool = False  # set by `close`: a dead end, a success, or a subtree with nothing left
@@ -235,6 +236,14 @@ def backup(child: ChildNode, reward: float) -> None:
         parent = node.parent
         parent.reward = max(parent.reward, reward)
         node = parent.parent
+
+
+def backup_score(child: ChildNode, score: float) -> None:
+    """Backup by max of the graded score (`ChildNode.score`), beside `backup` of the reward."""
+    node: ChildNode | None = child
+    while node is not None:
+        node.score = max(node.score, score)
+        node = node.parent.parent
 
 
 def reward(layers_passed: float, layers_total: int, success: bool) -> float:

@@ -4,6 +4,7 @@ gripper pose in the body's frame, and PyBullet IK with seeded restarts for a gri
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,15 @@ def carried_pose(scene: Scene, grasp: Grasp) -> Pose:
     return compose(scene.tcp(), invert(grasp.tcp_in_body))
 
 
+def total_penetration(hits: Sequence[tuple[str, float]]) -> float:
+    """The deepest penetration into each body hit, summed over the bodies: a pose that still
+    touches one body is closer to free than one that touches two."""
+    deepest: dict[str, float] = {}
+    for name, depth in hits:
+        deepest[name] = max(deepest.get(name, 0.0), depth)
+    return sum(deepest.values())
+
+
 @dataclass(frozen=True)
 class IkResult:
     q: tuple[float, ...] | None
@@ -135,6 +145,7 @@ class IkResult:
     orientation_error: float
     restarts: int
     in_collision: int = 0  # restarts that reached the pose but collided
+    least_depth: float = math.inf  # the least total penetration among those restarts
 
 
 def solve_ik(
@@ -152,10 +163,12 @@ def solve_ik(
     """PyBullet's damped-least-squares IK from `restarts` seeded starts (`first_guess`, then
     alternately near it and anywhere within the joint limits), accepted within `tolerance`
     metres and the joint limits, and free of collision under `collisions` (the bodies hit are
-    added to `tally`)."""
+    added to `tally`). A failure reports the least residuals and the least total penetration of
+    the restarts that reached the pose: bookkeeping only, the draws stay those of the seed."""
     low, high = np.asarray(scene.joint_low), np.asarray(scene.joint_high)
     best_pos, best_ang = math.inf, math.inf
     reached = 0
+    least_depth = math.inf  # bookkeeping only: draws nothing, so the restarts stay as seeded
     for attempt in range(restarts):
         if attempt == 0 and first_guess is not None:
             start = first_guess
@@ -197,6 +210,7 @@ def solve_ik(
         if not hits:
             return IkResult(q, pos_err, ang_err, attempt + 1)
         reached += 1
+        least_depth = min(least_depth, total_penetration(hits))
         if tally is not None:
             tally.add(hits)
-    return IkResult(None, best_pos, best_ang, restarts, reached)
+    return IkResult(None, best_pos, best_ang, restarts, reached, least_depth)

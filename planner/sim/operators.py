@@ -17,6 +17,7 @@ from planner.sim.geometry import Pose, derived_seed, quat_from_axes, rotation
 from planner.sim.grasps import (
     Grasp,
     GraspError,
+    IkResult,
     carried_pose,
     hand_heading,
     make_grasp,
@@ -112,6 +113,38 @@ def _fail(call: OperatorCall, ex: Execution, reason: str, **detail: float) -> Ch
     return CheckResult(call, False, f"{_text(call)}: {reason}", ex.culprits(), detail)
 
 
+# How far a failed Inv-kin got, as `progress` in [0, 1): its stage (the grasp pose out of reach,
+# reached only in collision, then the same two for the approach pose), plus a closeness within
+# the stage. The search does not use it; MCTS-BO regresses on it, to tell apart children that
+# failed at the same check (`planner.search.pwuct.PWUCT._graded_depth`).
+IK_OUT_OF_REACH, IK_COLLIDES, APPROACH_OUT_OF_REACH, APPROACH_COLLIDES = range(4)
+IK_STAGES = 4
+REACH_SCALE = 0.05  # metres of IK residual at which reach closeness is one half
+DEPTH_SCALE = 0.01  # metres of total penetration at which collision closeness is one half
+METRES_PER_RADIAN = 0.1  # an orientation residual counted as a position residual
+PROGRESS_STEP = 1e-3  # progress is rounded to this: penetrations differ by solver noise
+PROGRESS_CAP = 0.999  # below 1: a failure never scores like passing the check
+
+
+def ik_progress(stage: int, tried: list[IkResult]) -> float:
+    """`(stage + closeness) / IK_STAGES`, rounded to `PROGRESS_STEP`; closeness
+    `1 / (1 + residual / REACH_SCALE)` for a pose out of reach, `1 / (1 + least total
+    penetration / DEPTH_SCALE)` for a pose reached only in collision (the restart that came
+    closest to being free: the deepest penetration over restarts is noisy)."""
+    if stage in (IK_OUT_OF_REACH, APPROACH_OUT_OF_REACH):
+        residual = min(r.position_error + METRES_PER_RADIAN * r.orientation_error for r in tried)
+        closeness = 1.0 / (1.0 + residual / REACH_SCALE)
+    else:
+        closeness = 1.0 / (1.0 + min(r.least_depth for r in tried) / DEPTH_SCALE)
+    progress = round((stage + closeness) / IK_STAGES / PROGRESS_STEP) * PROGRESS_STEP
+    return min(progress, PROGRESS_CAP)
+
+
+# A failed Plan-motion's `progress`: which of its three parts failed (no closeness within).
+MOTION_RETREAT, MOTION_PATH, MOTION_APPROACH = range(3)
+MOTION_STAGES = 3
+
+
 def first_guess(scene: Scene, target: Pose) -> tuple[float, ...]:
     """A start for IK that is already close: a nominal solution for the same kind of hand pose
     straight ahead of the robot (hand pointing down, or level with its x axis up or down),
@@ -173,6 +206,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         derived_seed(ex.seed, _text(call), body_pose, candidates[0].direction)
     )
     options = dict(restarts=s.ik_restarts, iterations=s.ik_iterations, tolerance=s.ik_tolerance)
+    tried: list[IkResult] = []
     for grasp in candidates:
         target = tcp_target(grasp, body_pose)
         found = solve_ik(
@@ -184,12 +218,19 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             first_guess=first_guess(scene, target),
             **options,
         )
+        tried.append(found)
         if found.q is not None:
             break
     if found.q is None:
         ex.settle()
         if ex.tally.counts:  # some restart reached the pose, but in collision
-            return _fail(call, ex, f"every IK solution collides with {ex.collision_text()}")
+            return _fail(
+                call,
+                ex,
+                f"every IK solution collides with {ex.collision_text()}",
+                least_depth=min(r.least_depth for r in tried),
+                progress=ik_progress(IK_COLLIDES, tried),
+            )
         return _fail(
             call,
             ex,
@@ -198,6 +239,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             f"{found.orientation_error:.2f} rad)",
             position_error=found.position_error,
             orientation_error=found.orientation_error,
+            progress=ik_progress(IK_OUT_OF_REACH, tried),
         )
     approach = tcp_target(grasp, body_pose, s.approach)
     pre = solve_ik(
@@ -209,7 +251,15 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             what = f"collides with {ex.collision_text()}"
         else:
             what = f"is out of reach (best error {pre.position_error:.3f} m)"
-        return _fail(call, ex, f"the approach pose {s.approach} m back {what}")
+        stage = APPROACH_COLLIDES if pre.in_collision else APPROACH_OUT_OF_REACH
+        return _fail(
+            call,
+            ex,
+            f"the approach pose {s.approach} m back {what}",
+            position_error=pre.position_error,
+            least_depth=pre.least_depth,
+            progress=ik_progress(stage, [pre]),
+        )
     ex.values[call.outputs[0]] = ArmConfig(found.q, pre.q, grasp, body_pose, region)
     return CheckResult(call, True, detail={"ik_restarts": float(found.restarts + pre.restarts)})
 
@@ -229,7 +279,10 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
     ):
         ex.settle()
         return _fail(
-            call, ex, f"the retreat from {call.args[0]} collides with {ex.collision_text()}"
+            call,
+            ex,
+            f"the retreat from {call.args[0]} collides with {ex.collision_text()}",
+            progress=MOTION_RETREAT / MOTION_STAGES,
         )
     seed = derived_seed(ex.seed, _text(call), a, b)
     middle, checks = rrt_connect(
@@ -253,11 +306,15 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
             f"RRT-Connect found no path within its budget of {s.motion_max_checks} collision "
             f"checks ({checks} used){hit}",
             collision_checks=float(checks),
+            progress=MOTION_PATH / MOTION_STAGES,
         )
     if goal.pre is not None and not check_segment(b, goal.q, check, s.motion_resolution, ex.tally):
         ex.settle()
         return _fail(
-            call, ex, f"the approach to {call.args[1]} collides with {ex.collision_text()}"
+            call,
+            ex,
+            f"the approach to {call.args[1]} collides with {ex.collision_text()}",
+            progress=MOTION_APPROACH / MOTION_STAGES,
         )
     ex.settle()
     waypoints = (start.q, *middle, goal.q)

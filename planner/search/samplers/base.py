@@ -28,6 +28,9 @@ class SampleContext:
     rollout: int
     rng: np.random.Generator
     sibling_matrix: np.ndarray | None = None  # continuous siblings as an (n, dim) array
+    # The children's backed-up rewards, graded within the failed check (`ChildNode.score`): they
+    # differ between children that failed at one check; None from a tree that does not grade.
+    sibling_scores: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)

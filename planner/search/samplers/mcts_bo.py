@@ -1,11 +1,13 @@
-"""MCTS-BO: GP-UCB on the rewards of a node's children (task-local; nothing is kept).
+"""MCTS-BO: GP-UCB on the graded rewards of a node's children (task-local; nothing is kept).
 
-At a decision node with at least two children whose backed-up rewards differ, a GP regression
+At a decision node with at least `min_children` children whose targets differ, a GP regression
 (Matern 5/2 ARD, constant mean: `surrogate.models.fit_regression`) is fitted from the children's
-values to their rewards and the UCB `mu + sqrt(beta) sigma` is maximised (NSGA-II,
-`surrogate.optimize.maximize`) away from the children. With no signal yet (fewer children, or all
-rewards equal, where UCB reduces to pure variance), the node expands like the Voronoi sampler.
-Each node warm-starts from its previous fit.
+values to their targets and the UCB `mu + sqrt(beta) sigma` is maximised (NSGA-II,
+`surrogate.optimize.maximize`) away from the children. The target is the backed-up reward graded
+within the failed check (`SampleContext.sibling_scores`: an IK residual, a penetration depth):
+with the plain reward, children failing at one check score alike and the GP chose only 2-14% of
+expansions. With no signal yet (fewer children, or all targets equal, where UCB reduces to pure
+variance), the node expands like the Voronoi sampler. Each node warm-starts from its previous fit.
 """
 
 from __future__ import annotations
@@ -22,8 +24,10 @@ FIT_ITERATIONS = 60  # a node's children are few; warm starts take a third of th
 class MctsBoSampler:
     name = "mcts-bo"
 
-    def __init__(self, beta: float = 2.0) -> None:
+    def __init__(self, beta: float = 2.0, *, min_children: int = 2, graded: bool = True) -> None:
         self.beta = beta
+        self.min_children = min_children
+        self.graded = graded  # False: regress on the tree's reward (the pre-graded baseline)
         self._fits: dict[tuple, object] = {}
         self.guided = 0
         self.unguided = 0
@@ -35,12 +39,15 @@ class MctsBoSampler:
         from surrogate.optimize import maximize
 
         domain = ctx.var.domain
-        rewards = ctx.sibling_rewards[-MAX_CHILDREN_FITTED:]
+        targets = ctx.sibling_scores if self.graded else None
+        if targets is None:
+            targets = ctx.sibling_rewards
+        rewards = targets[-MAX_CHILDREN_FITTED:]
         if isinstance(domain, CategoricalDomain):
             left = [c for c in domain.choices if c not in ctx.siblings]
             if len(left) == 1:
                 return left[0]
-        if len(rewards) < 2 or max(rewards) - min(rewards) < 1e-12:
+        if len(rewards) < max(self.min_children, 2) or max(rewards) - min(rewards) < 1e-12:
             self.unguided += 1
             return space_filling(ctx)
         var = ctx.var.var

@@ -45,3 +45,46 @@ def test_ucb_goes_where_the_rewards_are_high_and_is_seeded():
     assert first == again
     assert sum(first) > 1.2, first
     assert first not in siblings
+
+
+def graded_context(siblings, rewards, scores, seed=0) -> SampleContext:
+    base = context(siblings, rewards, seed)
+    return SampleContext(**{**base.__dict__, "sibling_scores": tuple(scores)})
+
+
+def test_graded_scores_guide_where_the_rewards_are_all_equal():
+    rng = np.random.default_rng(4)
+    siblings = rng.random((12, 2)).tolist()
+    rewards = [0.025] * len(siblings)  # every child failed at the same check
+    # ... but came closer to passing it toward the corner (1, 1), within the check's band.
+    scores = [0.025 + 0.008 * (x + y) / 2 for x, y in siblings]
+    sampler = MctsBoSampler(beta=0.1)
+    value = sampler.propose(graded_context(siblings, rewards, scores, seed=1))
+    assert sampler.guided == 1 and sampler.unguided == 0
+    assert sum(value) > 1.2, value
+
+
+def test_ungraded_sampler_ignores_the_scores():
+    siblings = [[0.1, 0.1], [0.9, 0.9]]
+    sampler = MctsBoSampler(graded=False)
+    sampler.propose(graded_context(siblings, [0.025, 0.025], [0.026, 0.030]))
+    assert sampler.unguided == 1 and sampler.guided == 0
+
+
+def test_a_tree_without_scores_falls_back_to_the_rewards():
+    rng = np.random.default_rng(4)
+    siblings = rng.random((6, 2)).tolist()
+    rewards = [0.1 * x for x, _ in siblings]
+    sampler = MctsBoSampler()
+    sampler.propose(context(siblings, rewards))  # sibling_scores is None
+    assert sampler.guided == 1
+
+
+def test_min_children_defers_the_gp():
+    siblings = [[0.1, 0.1], [0.5, 0.5], [0.9, 0.9]]
+    scores = [0.02, 0.03, 0.04]
+    sampler = MctsBoSampler(min_children=4)
+    sampler.propose(graded_context(siblings, [0.02] * 3, scores))
+    assert sampler.unguided == 1
+    sampler.propose(graded_context([*siblings, [0.3, 0.7]], [0.02] * 4, [*scores, 0.05]))
+    assert sampler.guided == 1
