@@ -155,3 +155,21 @@ def test_looking_ahead_takes_in_every_type_on_the_later_decisions(live_kb):
         )
         assert len(at_third) == 2
         paper_rule.close()
+
+
+def test_sessions_of_one_task_share_its_failure_graphs(live_kb):
+    """A planner process plans one task many times: the second session of a task looks up
+    the graphs the first one built (the same objects), another task builds its own."""
+    with CpkbClient(live_kb.url) as client:
+        first = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        first.prematch()
+        again = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        other = KnowledgeSession(client, live_kb.name, analytic_world("deskP"), background=False)
+        assert first._graphs and again._graphs is first._graphs
+        assert other._graphs is not first._graphs
+        again.prematch()
+        other.prematch()
+        shared = set(first._graphs) & set(other._graphs)
+        assert shared and all(first._graphs[k] is not other._graphs[k] for k in shared)
+        for session in (first, again, other):
+            session.close()
