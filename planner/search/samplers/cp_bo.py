@@ -35,7 +35,7 @@ Signature = tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # the node's (t
 
 @dataclass
 class _Batch:
-    constraints: Signature  # those on the node's own variable, when it was asked
+    constraints: Signature
     proposals: list[Proposal]
     rollout: int
 
@@ -82,11 +82,11 @@ class CpBoSampler:
 
     def _batch(self, ctx: SampleContext) -> _Batch | None:
         """This node's batch without the points since tried; asked anew when it is used up,
-        older than `BATCH_MAX_AGE` rollouts, or a type on the node's own variable became active.
-        A new type on later decisions only does not void the batch: the lookahead is a hint for
-        this value, and the nodes of those decisions weigh the type when they expand (in regrasp,
-        re-asking for every type met below a node cost half of all suggestions). None where no
-        type is active or the service cannot answer."""
+        older than `BATCH_MAX_AGE` rollouts, or the node's constraints changed (a type became
+        active here or on the later decisions it looks ahead to: a batch that kept its points
+        when only a later type was new cost regrasp and pack transfer a quarter more rollouts,
+        `benchmarks/results/paper7R`). None where no type is active or the service cannot
+        answer."""
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if not constraints:
             return None
@@ -99,7 +99,7 @@ class CpBoSampler:
             cached.proposals = [p for p in cached.proposals if _valid(p.value, ctx)]
         if (
             cached is None
-            or cached.constraints != _own(signature, ctx.var.var)
+            or cached.constraints != signature
             or not cached.proposals
             or ctx.rollout - cached.rollout > BATCH_MAX_AGE
         ):
@@ -129,7 +129,7 @@ class CpBoSampler:
         ]
         for point in points:
             self._remember_continuation(ctx, point.x, point.mpf, frozenset(signature))
-        return _Batch(_own(signature, ctx.var.var), proposals, ctx.rollout)
+        return _Batch(signature, proposals, ctx.rollout)
 
     def _remember_continuation(
         self, ctx: SampleContext, x: dict[str, Value], mpf: float, weighed: frozenset
@@ -159,16 +159,11 @@ class CpBoSampler:
             or ctx.rollout - continuation.rollout > BATCH_MAX_AGE
         ):
             return None
-        return _Batch(_own(signature, ctx.var.var), [continuation.proposal], continuation.rollout)
+        return _Batch(signature, [continuation.proposal], continuation.rollout)
 
     def close(self) -> None:
         self._batches.clear()
         self._continuations.clear()
-
-
-def _own(signature: Signature, var: str) -> Signature:
-    """The constraints of `signature` that bind `var` itself."""
-    return tuple(entry for entry in signature if any(v == var for _, v in entry[1]))
 
 
 def _node_key(ctx: SampleContext) -> NodeKey:
