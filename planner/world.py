@@ -23,6 +23,11 @@ class Culprit:
     pose: tuple[float, ...] | None = None
 
 
+PROGRESS_CAP = 0.999
+"""The most a failed check's `detail["progress"]` (how far it got, in [0, 1)) may be: below one,
+so a failure never scores like passing the check."""
+
+
 @dataclass(frozen=True)
 class CheckResult:
     """The verdict of one transition operator call."""

@@ -43,12 +43,11 @@ from planner.search.tree import (
     ucb_select,
     widens,
 )
-from planner.world import BindingWorld, TransitionOutcome
+from planner.world import PROGRESS_CAP, BindingWorld, TransitionOutcome
 
 _REWARD = attrgetter("reward")
 _SCORE = attrgetter("score")
 _VISITS = attrgetter("visits")
-PROGRESS_CAP = 0.999  # a failed check's progress stays below one passed check
 
 
 class SearchObserver(Protocol):

@@ -29,7 +29,7 @@ from planner.sim.motion import Checker, CollisionTally, check_segment, rrt_conne
 from planner.sim.scene import Scene
 from planner.skeleton import OperatorCall
 from planner.tasks.schema import PlannerSettings
-from planner.world import CheckResult, Culprit
+from planner.world import PROGRESS_CAP, CheckResult, Culprit
 
 
 @dataclass(frozen=True)
@@ -123,7 +123,6 @@ REACH_SCALE = 0.05  # metres of IK residual at which reach closeness is one half
 DEPTH_SCALE = 0.01  # metres of total penetration at which collision closeness is one half
 METRES_PER_RADIAN = 0.1  # an orientation residual counted as a position residual
 PROGRESS_STEP = 1e-3  # progress is rounded to this: penetrations differ by solver noise
-PROGRESS_CAP = 0.999  # below 1: a failure never scores like passing the check
 
 
 def ik_progress(stage: int, tried: list[IkResult]) -> float:

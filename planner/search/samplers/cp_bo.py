@@ -127,8 +127,9 @@ class CpBoSampler:
             for point in points
             if (value := point.x.get(ctx.var.var)) is not None and _valid(value, ctx)
         ]
+        weighed = frozenset(signature)
         for point in points:
-            self._remember_continuation(ctx, point.x, point.mpf, frozenset(signature))
+            self._remember_continuation(ctx, point.x, point.mpf, weighed)
         return _Batch(signature, proposals, ctx.rollout)
 
     def _remember_continuation(

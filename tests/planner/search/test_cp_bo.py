@@ -30,6 +30,24 @@ def wait_for_fits(client: CpkbClient, kb: str, timeout: float = 60.0) -> None:
     pytest.fail(f"the surrogates of {kb} were not fitted within {timeout} s")
 
 
+def stocked_desk_session(client: CpkbClient, kb: str):
+    """The analytic desk and a prematched session on `kb`, after 40 quasi-random rollouts of
+    desk have stocked it and its fits have landed."""
+    from planner.knowledge import KnowledgeSession
+    from planner.search import PWUCT
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.quasi_random import QuasiRandomSampler
+
+    world = analytic_world("desk")
+    stock = KnowledgeSession(client, kb, world, background=False)
+    PWUCT(world, QuasiRandomSampler(), seed=0, observer=stock).run(40, stop_at_first=False)
+    stock.close()
+    wait_for_fits(client, kb)
+    session = KnowledgeSession(client, kb, world, background=False)
+    session.prematch()
+    return world, session
+
+
 @pytest.mark.slow
 def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_service):
     guided, baseline = [], []
@@ -62,21 +80,11 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
     node's batch without using it up."""
     import numpy as np
 
-    from planner.knowledge import KnowledgeSession
-    from planner.search import PWUCT
-    from planner.search.analytic import analytic_world
     from planner.search.samplers.base import Proposal, SampleContext
     from planner.search.samplers.cp_bo import BATCH, BATCH_MAX_AGE, CpBoSampler
-    from planner.search.samplers.quasi_random import QuasiRandomSampler
 
     with CpkbClient(live_kb.url) as client:
-        world = analytic_world("desk")
-        stock = KnowledgeSession(client, live_kb.name, world, background=False)
-        PWUCT(world, QuasiRandomSampler(), seed=0, observer=stock).run(40, stop_at_first=False)
-        stock.close()
-        wait_for_fits(client, live_kb.name)
-        session = KnowledgeSession(client, live_kb.name, world, background=False)
-        session.prematch()
+        world, session = stocked_desk_session(client, live_kb.name)
         sampler = CpBoSampler(session)
         pose = world.skeleton.decisions[1]
         siblings: list = []
@@ -106,21 +114,11 @@ def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_
     next expansion asks. A child under a grasp the answer did not give has no continuation."""
     import numpy as np
 
-    from planner.knowledge import KnowledgeSession
-    from planner.search import PWUCT
-    from planner.search.analytic import analytic_world
     from planner.search.samplers.base import Proposal, SampleContext
     from planner.search.samplers.cp_bo import CpBoSampler
-    from planner.search.samplers.quasi_random import QuasiRandomSampler
 
     with CpkbClient(live_kb.url) as client:
-        world = analytic_world("desk")
-        stock = KnowledgeSession(client, live_kb.name, world, background=False)
-        PWUCT(world, QuasiRandomSampler(), seed=0, observer=stock).run(40, stop_at_first=False)
-        stock.close()
-        wait_for_fits(client, live_kb.name)
-        session = KnowledgeSession(client, live_kb.name, world, background=False)
-        session.prematch()
+        world, session = stocked_desk_session(client, live_kb.name)
         sampler = CpBoSampler(session)
         grasp, pose = world.skeleton.decisions
         rng = np.random.default_rng(0)

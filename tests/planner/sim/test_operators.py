@@ -14,9 +14,9 @@ from planner.sim.operators import (
     APPROACH_OUT_OF_REACH,
     IK_COLLIDES,
     IK_OUT_OF_REACH,
-    PROGRESS_CAP,
     ik_progress,
 )
+from planner.world import PROGRESS_CAP
 
 ON_OBSTACLE3 = [0.857, 0.929, 0.5]  # see tests/planner/sim/test_world.py
 
