@@ -6,9 +6,8 @@ genes are exchanged whole between parents and re-drawn uniformly on mutation, so
 exact and never treated as ordinal. A finite space (categoricals only, small) is enumerated instead.
 
 Like BoTorch's `optimize_acqf`, the search starts from raw samples (a Latin hypercube, scored in
-one vectorised call) and NSGA-II refines the best of them for a few generations: pymoo costs a few
-milliseconds per generation whatever the population, so generations, not evaluations, set the price
-of a suggestion. The score NSGA-II maximises is the acquisition plus a small exploration bonus
+one vectorised call) and NSGA-II refines the best of them for a few generations (pymoo's SBX and
+polynomial mutation, driven on arrays; see `_nsga2`), each point scored once. The score NSGA-II maximises is the acquisition plus a small exploration bonus
 (distance to the nearest excluded or pending point) minus a penalty around pending points, so that
 concurrent planners are pushed apart. An excluded point is never returned.
 
@@ -27,11 +26,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from pymoo.algorithms.moo.nsga2 import NSGA2
+from pymoo.core.population import Population
 from pymoo.core.problem import Problem
 from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
-from pymoo.optimize import minimize
 from scipy.stats import qmc
 
 from client.models import CategoricalDomain
@@ -150,19 +148,28 @@ class _Scorer:
         self.genome = genome
         self.avoid = avoid
         self.config = config
-        self._known: dict[bytes, float] = {}  # genes row -> acquisition, for this request
+        self._known: dict[bytes, float] = {}  # columns row -> acquisition, for this request
 
     def raw(self, genes: np.ndarray) -> np.ndarray:
-        """`(n,)` the acquisition at each row of `genes`. Rows scored before are not scored
+        """`(n,)` the acquisition at each row of `genes`. Points scored before are not scored
         again: NSGA-II's start population and survivors are rows of earlier evaluations, and
-        one GP evaluation per term costs more than the whole of the rest."""
-        keys = [row.tobytes() for row in genes]
-        todo = [i for i, key in enumerate(keys) if key not in self._known]
+        one GP evaluation per term costs more than the whole of the rest. A point is its
+        columns, so genes that differ only inside one categorical choice are one point."""
+        cols = self.genome.columns(genes)
+        flat = np.column_stack(
+            [np.asarray(c, dtype=float).reshape(len(genes), -1) for c in cols.values()]
+        )
+        keys = [row.tobytes() for row in flat]
+        todo: dict[bytes, int] = {}  # each new point once, at its first row
+        for i, key in enumerate(keys):
+            if key not in self._known:
+                todo.setdefault(key, i)
         if todo:
-            cols = self.genome.columns(genes[todo])
-            fresh = np.asarray(self.acquisition({**cols, **self.fixed_cols}), dtype=float)
-            for i, value in zip(todo, np.broadcast_to(fresh, (len(todo),)), strict=True):
-                self._known[keys[i]] = float(value)
+            rows = list(todo.values())
+            picked = {name: col[rows] for name, col in cols.items()}
+            fresh = np.asarray(self.acquisition({**picked, **self.fixed_cols}), dtype=float)
+            for key, value in zip(todo, np.broadcast_to(fresh, (len(rows),)), strict=True):
+                self._known[key] = float(value)
         return np.fromiter((self._known[key] for key in keys), dtype=float, count=len(keys))
 
     def evaluate(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -190,15 +197,6 @@ class _Scorer:
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         """`(n,)` the score NSGA-II maximises."""
         return self.evaluate(genes)[0]
-
-
-class _Problem(Problem):
-    def __init__(self, scorer: _Scorer) -> None:
-        super().__init__(n_var=scorer.genome.n_genes, n_obj=1, xl=0.0, xu=1.0)
-        self.scorer = scorer
-
-    def _evaluate(self, x, out, *args, **kwargs):  # type: ignore[no-untyped-def]
-        out["F"] = -self.scorer(x)
 
 
 def _split(
@@ -351,19 +349,64 @@ def space_filling_genes(n_genes: int, n: int, seed: int) -> np.ndarray:
 def _nsga2(
     genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int, start: np.ndarray
 ) -> np.ndarray:
-    """NSGA-II's final population, started from `start` `(pop_size, n_genes)`."""
-    algorithm = NSGA2(
-        pop_size=config.pop_size,
-        sampling=start,
-        crossover=_MixedSBX(genome.categorical, eta=config.sbx_eta, prob=config.sbx_prob),
-        mutation=_MixedPM(genome.categorical, eta=config.pm_eta),
-        eliminate_duplicates=config.eliminate_duplicates,
-    )
-    problem = _Problem(scorer)
-    result = minimize(
-        problem, algorithm, ("n_gen", config.n_gen), copy_algorithm=False, seed=seed, verbose=False
-    )
-    return result.pop.get("X")
+    """Every genome NSGA-II evaluates `(n, n_genes)` in `config.n_gen - 1` generations from
+    `start` `(pop_size, n_genes)`.
+
+    With one objective, NSGA-II's rank-and-crowding comparison is a comparison of scores, so the
+    generations are driven here on arrays: binary tournaments on the score, pymoo's SBX and
+    polynomial mutation (through their `do`, crossover probability included), and survival of
+    the best `pop_size` of parents and offspring. pymoo's `minimize` loop gave the same search
+    at several times the cost (its per-individual bookkeeping took most of a suggestion)."""
+    rng = np.random.default_rng(seed)
+    problem = Problem(n_var=genome.n_genes, n_obj=1, xl=0.0, xu=1.0)  # the operators' bounds
+    crossover = _MixedSBX(genome.categorical, eta=config.sbx_eta, prob=config.sbx_prob)
+    mutation = _MixedPM(genome.categorical, eta=config.pm_eta)
+    pop, score = start, scorer(start)
+    evaluated = [start]
+    n_matings = -(-config.pop_size // crossover.n_offsprings)
+    for _ in range(config.n_gen - 1):
+        parents = _binary_tournaments(score, n_matings * crossover.n_parents, rng)
+        offspring = crossover.do(
+            problem,
+            Population.new("X", pop),
+            parents.reshape(n_matings, crossover.n_parents),
+            random_state=rng,
+        )
+        genes = mutation.do(problem, offspring, random_state=rng).get("X")
+        genes = np.clip(genes[: config.pop_size], 0.0, 1.0)
+        if config.eliminate_duplicates:
+            genes = _new_rows(genes, pop)
+        if not len(genes):
+            break
+        evaluated.append(genes)
+        both = np.vstack([pop, genes])
+        both_score = np.concatenate([score, scorer(genes)])
+        keep = np.argsort(-both_score, kind="stable")[: config.pop_size]
+        pop, score = both[keep], both_score[keep]
+    return np.vstack(evaluated)
+
+
+def _binary_tournaments(score: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """`(n,)` indices of tournament winners: pairs drawn without replacement (permutations of
+    the population, as pymoo's tournament selection does), the higher score wins, ties at random."""
+    need = 2 * n
+    draws = np.concatenate([rng.permutation(len(score)) for _ in range(-(-need // len(score)))])
+    a, b = draws[:need:2], draws[1:need:2]
+    coin = rng.random(n) < 0.5
+    a_wins = (score[a] > score[b]) | ((score[a] == score[b]) & coin)
+    return np.where(a_wins, a, b)
+
+
+def _new_rows(genes: np.ndarray, pop: np.ndarray) -> np.ndarray:
+    """The rows of `genes` that are not rows of `pop` nor repeated (pymoo's duplicate rule)."""
+    seen = {row.tobytes() for row in pop}
+    keep = []
+    for i, row in enumerate(genes):
+        key = row.tobytes()
+        if key not in seen:
+            seen.add(key)
+            keep.append(i)
+    return genes[keep]
 
 
 def space_filling(
