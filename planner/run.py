@@ -64,6 +64,7 @@ class PlanResult:
     local_suggestions: int = 0
     model_fetches: int = 0
     kb_errors: int = 0
+    kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
     notes: list[str] = field(default_factory=list)
@@ -269,6 +270,7 @@ def _plan_with_knowledge(
             session.close()
         stats = session.stats
         result.kb_s = stats.kb_s
+        result.kb_parts = {part: round(s, 6) for part, s in sorted(stats.kb_parts.items())}
         result.types_activated = stats.types_activated
         result.points_activated = stats.points_activated
         result.types_active = stats.types_active

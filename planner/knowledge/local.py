@@ -21,6 +21,7 @@ planners that share one knowledge base and want to be pushed apart ask the servi
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -91,6 +92,7 @@ class LocalSurrogates:
         self._config = OptimizerConfig()
         self._pending = PendingBook(ttl_s=30.0)
         self.fetches = 0
+        self.fetch_s = 0.0  # spent waiting for fetches (not the background ones)
         self._executor = (
             ThreadPoolExecutor(1, thread_name_prefix="cpkb-models") if background else None
         )
@@ -110,7 +112,7 @@ class LocalSurrogates:
         self._land()
         missing = [t for t in type_ids if t not in self._models]
         if missing:
-            self._apply(self._ask(missing)(), missing, rollout, stored)
+            self._apply(self._fetch_now(missing), missing, rollout, stored)
         stale = [t for t in type_ids if self._stale(t, rollout)]
         if stale:
             self._refresh(stale, rollout, stored)
@@ -156,11 +158,18 @@ class LocalSurrogates:
         self.fetches += 1
         return lambda: self._fetch(type_ids, known)
 
+    def _fetch_now(self, type_ids: list[str]) -> ModelsOut:
+        started = time.perf_counter()
+        try:
+            return self._ask(type_ids)()
+        finally:
+            self.fetch_s += time.perf_counter() - started
+
     def _refresh(self, type_ids: list[str], rollout: int, stored: int) -> None:
         """Fetch newer fits of types in use: in the background if this planner has one (one
         refresh at a time; the types asked for are not stale again until it lands)."""
         if self._executor is None:
-            self._apply(self._ask(type_ids)(), type_ids, rollout, stored)
+            self._apply(self._fetch_now(type_ids), type_ids, rollout, stored)
             return
         if self._in_flight is not None:
             return

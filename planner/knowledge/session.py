@@ -2,7 +2,7 @@
 
 The session observes every transition the search runs. A failed check becomes a causal graph
 and an infeasible point; the first time a graph is met in this run, `types/match` tells its type
-ID, and the type becomes *active* at that check with its labels bound to this task's variables
+ID (prematch has usually told it already), and the type becomes *active* at that check with its labels bound to this task's variables
 (if the type existed before, this is transfer: its points count as activated). Every later
 evaluation of an active type's check adds a labelled point: feasible when the check passes,
 infeasible when it fails the same way. Before any failure, `prematch` asks `types/match` about
@@ -83,9 +83,16 @@ class KnowledgeStats:
     local_suggestions: int = 0  # of `suggestions`, answered in this process
     model_fetches: int = 0
     kb_s: float = 0.0
+    kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     errors: int = 0
     prematched: int = 0
     events: dict[str, int] = field(default_factory=dict)
+
+    def spent(self, part: str, seconds: float) -> None:
+        """Count `seconds` of blocking on the knowledge base, under `part` (match, post, fetch,
+        suggest): where a guided rollout's extra time goes."""
+        self.kb_s += seconds
+        self.kb_parts[part] = self.kb_parts.get(part, 0.0) + seconds
 
     def event(self, message: str) -> None:
         """Count a problem; distinct messages are kept (a few), repeats only counted."""
@@ -136,6 +143,7 @@ class KnowledgeSession:
             else None
         )
         self._unmatched: dict[Key, FailureGraph] = {}
+        self._absent: dict[Key, str] = {}  # graphs prematch found absent: their type IDs
         self._types: set[str] = set()
         self._rollout = 0
 
@@ -160,7 +168,14 @@ class KnowledgeSession:
         return self._graphs[key]
 
     def _match(self, *, only_existing: bool) -> int:
-        """Ask the dictionary about the graphs met (or imagined) but not matched yet."""
+        """Ask the dictionary about the graphs met (or imagined) but not matched yet. A graph
+        that prematch found absent becomes a new type without asking again: prematch told its
+        type ID, and the round trip (a fifth of a guided regrasp run's knowledge-base time on a
+        busy machine) would only say whether another planner created it in the meantime."""
+        if not only_existing:
+            for key in [k for k in self._unmatched if k in self._absent]:
+                absent = MatchResult(type_id=self._absent.pop(key), exists=False, n_points=0)
+                self._activate(key, self._unmatched.pop(key), absent)
         if not self._unmatched:
             return 0
         keys = list(self._unmatched)
@@ -178,11 +193,14 @@ class KnowledgeSession:
             self.stats.event(f"match failed: {exc}")
             return 0
         finally:
-            self.stats.kb_s += time.perf_counter() - started
+            self.stats.spent("match", time.perf_counter() - started)
         activated = 0
         for key, result in zip(keys, results, strict=True):
             fg = self._unmatched.pop(key)
-            if result is None or (only_existing and not result.exists):
+            if result is not None and only_existing and not result.exists:
+                self._absent[key] = result.type_id
+                continue
+            if result is None:
                 continue
             self._activate(key, fg, result)
             activated += int(result.exists)
@@ -284,7 +302,7 @@ class KnowledgeSession:
                 # batch, so that when a type starts guiding does not depend on timing.
                 started = time.perf_counter()
                 self.poster.wait_for(activation.stored_with)
-                self.stats.kb_s += time.perf_counter() - started
+                self.stats.spent("post", time.perf_counter() - started)
             bind = tuple(sorted(activation.failure.bind.items()))
             if (activation.type_id, bind) in seen:
                 continue
@@ -316,6 +334,7 @@ class KnowledgeSession:
             n=n,
         )
         started = time.perf_counter()
+        fetching = self.local.fetch_s if self.local is not None else 0.0
         try:
             answer = self._suggest_locally(request)
             if answer is None:
@@ -324,7 +343,9 @@ class KnowledgeSession:
             self.stats.event(f"suggest failed: {exc}")
             return None
         finally:
-            self.stats.kb_s += time.perf_counter() - started
+            fetched = (self.local.fetch_s if self.local is not None else fetching) - fetching
+            self.stats.spent("fetch", fetched)
+            self.stats.spent("suggest", time.perf_counter() - started - fetched)
         self.stats.suggestions += 1
         return answer
 
@@ -356,7 +377,7 @@ class KnowledgeSession:
         self.poster.close()
         if self.local is not None:
             self.local.close()
-        self.stats.kb_s += time.perf_counter() - started
+        self.stats.spent("post", time.perf_counter() - started)
 
     @property
     def points_posted(self) -> int:

@@ -173,3 +173,36 @@ def test_sessions_of_one_task_share_its_failure_graphs(live_kb):
         assert shared and all(first._graphs[k] is not other._graphs[k] for k in shared)
         for session in (first, again, other):
             session.close()
+
+
+class _CountingClient(CpkbClient):
+    """The real client, counting the graphs it sends to `types/match`."""
+
+    matched: list[int]
+
+    def match_types(self, kb, graphs):  # type: ignore[no-untyped-def]
+        self.matched.append(len(graphs))
+        return super().match_types(kb, graphs)
+
+
+def test_a_failure_prematch_found_absent_becomes_a_type_without_asking_again(live_kb):
+    """Prematch learns the type ID of every graph the task could produce; a failure met later
+    whose graph was absent then is activated with that ID and no second request, and its
+    points are stored under it."""
+    with _CountingClient(live_kb.url) as client:
+        client.matched = []
+        world = analytic_world("desk")
+        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        session.prematch()
+        assert len(client.matched) == 1 and session.stats.types_active == 0
+        PWUCT(world, QuasiRandomSampler(), seed=0, observer=session).run(40, stop_at_first=False)
+        session.close()
+        assert len(client.matched) == 1
+        assert session.stats.types_active > 0
+        stored = {t.type_id for t in client.list_types(live_kb.name)}
+        active = {a.type_id for a in session._active.values()}
+        assert active == stored
+        assert {
+            client.match_types(live_kb.name, [a.failure.graph])[0].type_id
+            for a in session._active.values()
+        } == stored
