@@ -7,9 +7,10 @@ exact and never treated as ordinal. A finite space (categoricals only, small) is
 
 Like BoTorch's `optimize_acqf`, the search starts from raw samples (a Latin hypercube, scored in
 one vectorised call) and NSGA-II refines the best of them for a few generations (pymoo's SBX and
-polynomial mutation, driven on arrays; see `_nsga2`), each point scored once. The score NSGA-II maximises is the acquisition plus a small exploration bonus
-(distance to the nearest excluded or pending point) minus a penalty around pending points, so that
-concurrent planners are pushed apart. An excluded point is never returned.
+polynomial mutation, driven on arrays; see `_nsga2`), each point scored once. The score NSGA-II
+maximises is the acquisition plus a small exploration bonus (distance to the nearest excluded or
+pending point) minus a penalty around pending points, so that concurrent planners are pushed apart.
+An excluded point is never returned.
 
 With `margin > 0` the answer is not the argmax itself but the candidate farthest from the excluded
 and pending points among those within `margin` (a fraction) of the best acquisition value: for

@@ -1,13 +1,13 @@
 """The knowledge base in the loop of one binding search.
 
-The session observes every transition the search runs. A failed check becomes a causal graph
-and an infeasible point; the first time a graph is met in this run, `types/match` tells its type
-ID (prematch has usually told it already), and the type becomes *active* at that check with its labels bound to this task's variables
-(if the type existed before, this is transfer: its points count as activated). Every later
-evaluation of an active type's check adds a labelled point: feasible when the check passes,
-infeasible when it fails the same way. Before any failure, `prematch` asks `types/match` about
-every graph this task could produce (each check x each culprit the world may report), so types
-that earlier tasks learned guide the very first expansions.
+The session observes every transition the search runs. A failed check becomes a causal graph and an
+infeasible point; the first time a graph is met in this run, `types/match` tells its type ID
+(prematch has usually told it already), and the type becomes *active* at that check with its labels
+bound to this task's variables (if the type existed before, this is transfer: its points count as
+activated). Every later evaluation of an active type's check adds a labelled point: feasible when
+the check passes, infeasible when it fails the same way. Before any failure, `prematch` asks
+`types/match` about every graph this task could produce (each check x each culprit the world may
+report), so types that earlier tasks learned guide the very first expansions.
 
 Points go out in one batch per rollout on a background thread; only `match` and `suggest` block
 the search, and their time is `kb_s`.
@@ -370,14 +370,15 @@ class KnowledgeSession:
         return answer
 
     def close(self) -> None:
-        """Post what is left and wait for the background poster."""
+        """Post what is left and wait for the background poster. This comes after the search
+        has its binding, so its time is kept apart (`kb_parts["close"]`), not in `kb_s`."""
+        started = time.perf_counter()
         if self._pending:
             self.on_rollout_end(self._rollout)
-        started = time.perf_counter()
         self.poster.close()
         if self.local is not None:
             self.local.close()
-        self.stats.spent("post", time.perf_counter() - started)
+        self.stats.kb_parts["close"] = time.perf_counter() - started
 
     @property
     def points_posted(self) -> int:
