@@ -9,7 +9,9 @@ this planner posted weigh in at once (`RecentPoints`), as they would in the serv
 fetched anew once its type has new points and `REFRESH_ROLLOUTS` rollouts have passed, and only
 if its version changed. Such a refresh runs in the background: the fetch costs 5-80 ms on a busy
 machine (the service encodes every changed fit), and the model in hand, with this planner's own
-points, is good until the next one lands. Only a type with no model yet is fetched at once.
+points, is good until the next one lands. A type with no model yet is fetched at once, unless
+this planner is creating it: then it starts from the stated prior on its own points, as the
+service would serve it.
 
 Like the service, it keeps the suggestions it served as pending until a point answers them (or
 they expire), and pushes new ones away from them: a batch's unused points and other nodes' recent
@@ -32,7 +34,7 @@ from client.models import ModelsOut, SuggestIn, SuggestOut, Value
 from surrogate import snapshot
 from surrogate.acquisition import ConstraintTerm
 from surrogate.encoding import Domain, SpaceEncoder
-from surrogate.models import FeasibilityPredictor, RecentPoints
+from surrogate.models import FeasibilityPredictor, PriorPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.suggest import mpf_points, served
@@ -52,22 +54,30 @@ class _Model:
     n_fitted: int
     fetched_at: int  # rollout
     own: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)  # (batch, x, ok)
+    born_with: int = 0  # a type this planner created: the poster batch that stores it
     _predictor: FeasibilityPredictor | None = None
 
+    @property
+    def fetched(self) -> bool:
+        return bool(self.version)
+
     def predictor(self) -> FeasibilityPredictor:
-        """The fetched predictor with this planner's points since weighed in."""
+        """The fetched predictor with this planner's points since weighed in; for a type this
+        planner created and has not fetched yet, the stated prior on its own points (what the
+        service serves for a type with so few points)."""
         if self._predictor is None:
-            self._predictor = self.fitted
-            if self.own:
-                encoder = SpaceEncoder(self.space)
-                feasible = [x for _, x, ok in self.own if ok]
-                infeasible = [x for _, x, ok in self.own if not ok]
-                empty = np.zeros((0, encoder.dim))
-                self._predictor = RecentPoints(
-                    self.fitted,
-                    encoder.encode_points(feasible) if feasible else empty,
-                    encoder.encode_points(infeasible) if infeasible else empty,
-                )
+            encoder = SpaceEncoder(self.space)
+            empty = np.zeros((0, encoder.dim))
+            feasible = [x for _, x, ok in self.own if ok]
+            infeasible = [x for _, x, ok in self.own if not ok]
+            z_ok = encoder.encode_points(feasible) if feasible else empty
+            z_bad = encoder.encode_points(infeasible) if infeasible else empty
+            if not self.fetched:
+                self._predictor = PriorPredictor(z_ok, z_bad)
+            elif self.own:
+                self._predictor = RecentPoints(self.fitted, z_ok, z_bad)
+            else:
+                self._predictor = self.fitted
         return self._predictor
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
@@ -90,6 +100,7 @@ class LocalSurrogates:
         self._fetch = fetch
         self._models: dict[str, _Model] = {}
         self._config = OptimizerConfig()
+        self._settings_known = False  # `_config` is the service's (a fetch has been answered)
         self._pending = PendingBook(ttl_s=30.0)
         self.fetches = 0
         self.fetch_s = 0.0  # spent waiting for fetches (not the background ones)
@@ -97,6 +108,27 @@ class LocalSurrogates:
             ThreadPoolExecutor(1, thread_name_prefix="cpkb-models") if background else None
         )
         self._in_flight: _Fetch | None = None
+
+    def adopt(self, type_id: str, space: Mapping[str, Domain], stored_with: int) -> bool:
+        """Take up a type this planner is creating (its first point goes out in poster batch
+        `stored_with`), if the service's optimiser settings are known (from an earlier fetch):
+        it guides at once from this planner's own points, without waiting for that batch to be
+        stored and fetching the service's model of it (two round trips that cost a guided
+        regrasp run about a tenth of its time on a busy machine); the service's model is
+        fetched in the background once the batch is stored. False: fetch it as any other."""
+        if not self._settings_known:
+            return False
+        if type_id not in self._models:
+            none = np.zeros((0, SpaceEncoder(space).dim))
+            self._models[type_id] = _Model(
+                dict(space),
+                PriorPredictor(none, none),
+                version="",
+                n_fitted=0,
+                fetched_at=0,
+                born_with=stored_with,
+            )
+        return True
 
     def note(self, type_id: str, x: Mapping[str, Value], feasible: bool, batch: int) -> None:
         """A point this planner posted (in poster batch `batch`)."""
@@ -113,7 +145,7 @@ class LocalSurrogates:
         missing = [t for t in type_ids if t not in self._models]
         if missing:
             self._apply(self._fetch_now(missing), missing, rollout, stored)
-        stale = [t for t in type_ids if self._stale(t, rollout)]
+        stale = [t for t in type_ids if self._stale(t, rollout, stored)]
         if stale:
             self._refresh(stale, rollout, stored)
         terms = [
@@ -147,8 +179,10 @@ class LocalSurrogates:
             self._executor = None
         self._in_flight = None
 
-    def _stale(self, type_id: str, rollout: int) -> bool:
+    def _stale(self, type_id: str, rollout: int, stored: int) -> bool:
         model = self._models[type_id]
+        if not model.fetched:
+            return stored >= model.born_with  # the service has the type once its batch is in
         return bool(model.own) and rollout - model.fetched_at >= REFRESH_ROLLOUTS
 
     def _ask(self, type_ids: list[str]) -> Callable[[], ModelsOut]:
@@ -191,6 +225,7 @@ class LocalSurrogates:
         when it was asked (later own points stay weighed in on top of the new snapshot)."""
         names = {f.name for f in dataclasses.fields(OptimizerConfig)}
         self._config = OptimizerConfig(**{k: v for k, v in answer.optimizer.items() if k in names})
+        self._settings_known = True
         self._pending.ttl_s = answer.pending_ttl_s
         for shot in answer.models:
             previous = self._models.get(shot.type_id)

@@ -217,6 +217,10 @@ class KnowledgeSession:
     def _activate(self, key: Key, fg: FailureGraph, result: MatchResult) -> None:
         transferred = result.exists and result.n_points > 0
         stored_with = 0 if result.exists else self.poster.submitted + 1
+        if stored_with and self.local is not None:
+            space = {n.label: n.domain for n in fg.graph.nodes if n.role == "decision"}
+            if self.local.adopt(result.type_id, space, stored_with):
+                stored_with = 0  # no need to wait for the service to store it
         activation = Activation(result.type_id, fg, transferred, result.n_points, stored_with)
         self._active[key] = activation
         self._by_check.setdefault(fg.check, []).append((key, activation))
@@ -299,7 +303,8 @@ class KnowledgeSession:
         for activation in chosen:
             if activation.stored_with > self.poster.done:
                 # A type met in this run exists once its first point is stored: wait for that
-                # batch, so that when a type starts guiding does not depend on timing.
+                # batch, so that when a type starts guiding does not depend on timing (unless
+                # this process's own models took it up at once: `LocalSurrogates.adopt`).
                 started = time.perf_counter()
                 self.poster.wait_for(activation.stored_with)
                 self.stats.spent("post", time.perf_counter() - started)

@@ -189,3 +189,29 @@ def test_a_refresh_runs_in_the_background_and_lands_at_the_next_suggestion(live_
     assert new is not old and calls[1][type_id] == old.version
     assert [batch for batch, _, _ in new.own] == [2]
     assert local.fetches == 2
+
+
+def test_a_type_this_planner_creates_guides_at_once_as_the_service_would(live_kb):
+    """A failure of a new type is taken up by the planner's own models at once (no wait for
+    its first point to be stored, no fetch): the stated prior on the planner's own points,
+    which is what the service serves for it once stored."""
+    _stock(live_kb)
+    with CpkbClient(live_kb.url) as client:
+        world = analytic_world("desk")
+        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        session.prematch()
+        grasp = world.skeleton.decisions[0]
+        assert session.suggest(grasp, {}, [], session.constraints_at("#dir1", {}), seed=0)
+        known = set(session._active)
+        bindings = {"#dir1": "back"}  # blocked at desk's start pose: not a deskP constraint
+        session.on_transition(0, bindings, world.transition(0, bindings, None), rollout=1)
+        session.on_rollout_end(1)
+        new = [a for key, a in session._active.items() if key not in known]
+        assert len(new) == 1 and new[0].stored_with == 0  # nothing to wait for
+        model = session.local._models[new[0].type_id]
+        assert not model.fetched
+        xs = [{"#dir": choice} for choice in grasp.domain.choices]
+        mine = model.predictor().proba(SpaceEncoder(model.space).encode_points(xs))
+        served = client.predict(live_kb.name, new[0].type_id, xs)
+        assert list(mine) == served and min(served) < 0.5
+        session.close()
