@@ -50,9 +50,8 @@ class PlanResult:
     solved: bool
     rollouts: int
     rollouts_spent: int
-    wall_s: (
-        float  # loading the world to the search's end: the time to the binding, for every method
-    )
+    # wall_s: from loading the world to the search's end, the time to the binding, for every method
+    wall_s: float
     sim_s: float
     kb_s: float
     sample_s: float

@@ -66,18 +66,19 @@ class _Model:
         planner created and has not fetched yet, the stated prior on its own points (what the
         service serves for a type with so few points)."""
         if self._predictor is None:
+            if self.fetched and not self.own:
+                self._predictor = self.fitted
+                return self._predictor
             encoder = SpaceEncoder(self.space)
             empty = np.zeros((0, encoder.dim))
             feasible = [x for _, x, ok in self.own if ok]
             infeasible = [x for _, x, ok in self.own if not ok]
             z_ok = encoder.encode_points(feasible) if feasible else empty
             z_bad = encoder.encode_points(infeasible) if infeasible else empty
-            if not self.fetched:
-                self._predictor = PriorPredictor(z_ok, z_bad)
-            elif self.own:
+            if self.fetched:
                 self._predictor = RecentPoints(self.fitted, z_ok, z_bad)
             else:
-                self._predictor = self.fitted
+                self._predictor = PriorPredictor(z_ok, z_bad)
         return self._predictor
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:

@@ -197,10 +197,10 @@ class KnowledgeSession:
         activated = 0
         for key, result in zip(keys, results, strict=True):
             fg = self._unmatched.pop(key)
-            if result is not None and only_existing and not result.exists:
-                self._absent[key] = result.type_id
-                continue
             if result is None:
+                continue
+            if only_existing and not result.exists:
+                self._absent[key] = result.type_id
                 continue
             self._activate(key, fg, result)
             activated += int(result.exists)
