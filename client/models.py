@@ -56,12 +56,19 @@ class ContinuousDomain(_Strict):
 
     `frame` optionally names the space the values are positions in (a placement's region):
     where a type has two decisions in one frame, its surrogate also sees how far apart they are,
-    so that "box 3 collides with box 1" is learned once, not anew for each place of box 1."""
+    so that "box 3 collides with box 1" is learned once, not anew for each place of box 1.
+
+    `heading` optionally marks a framed planar pose `(x, y, heading)`: the index of the heading
+    dimension, whose `[low, high]` spans one turn `[-pi, pi)` in the frame's axes; the other two
+    are the position, taken as equally scaled (a square frame). Two such poses in one frame are
+    then also seen in each other's heading frame: where one lies across or along the hand that
+    places the other (see `surrogate.encoding`)."""
 
     kind: Literal["continuous"] = "continuous"
     low: list[float] = Field(min_length=1, max_length=MAX_DIM)
     high: list[float] = Field(min_length=1, max_length=MAX_DIM)
     frame: Label | None = None
+    heading: int | None = Field(default=None, ge=0, le=2)
 
     @model_validator(mode="after")
     def _check(self) -> ContinuousDomain:
@@ -71,6 +78,8 @@ class ContinuousDomain(_Strict):
             raise ValueError("bounds must be finite numbers")
         if any(lo >= hi for lo, hi in zip(self.low, self.high, strict=True)):
             raise ValueError("every low must be below its high")
+        if self.heading is not None and (self.frame is None or len(self.low) != 3):
+            raise ValueError("heading needs a frame and three dimensions (x, y, heading)")
         return self
 
 

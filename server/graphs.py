@@ -204,11 +204,12 @@ def _check_isomorphic(type_id: str, new_json: str, stored_json: str) -> None:
 
 
 def _same_values(new: Domain | None, stored: Domain | None) -> bool:
-    """Equal domains, but for a continuous `frame`: a frame says how the surrogate encodes the
-    values, not which values there are, and a type stored without one (before frames existed)
-    keeps its own encoding rather than refusing the planners that now send one."""
+    """Equal domains, but for a continuous `frame` and `heading`: they say how the surrogate
+    encodes the values, not which values there are, and a type stored without them (before they
+    existed) keeps its own encoding rather than refusing the planners that now send them."""
     if isinstance(new, ContinuousDomain) and isinstance(stored, ContinuousDomain):
-        return new.model_copy(update={"frame": None}) == stored.model_copy(update={"frame": None})
+        unframed = {"frame": None, "heading": None}
+        return new.model_copy(update=unframed) == stored.model_copy(update=unframed)
     return new == stored
 
 

@@ -12,10 +12,19 @@ Two continuous variables in one `frame` (two placements in one tray) add their *
 function of how far apart they are, which a kernel on the absolute places alone would have to
 learn anew for every place of the first (measured on pack's points: held-out AUC of a type fitted
 on other runs' points, 0.07-0.89 without, 0.80-0.97 with).
+
+Two planar poses in one frame (domains with a `heading`) add their *relative pose* instead: each
+one's offset in the other's heading frame, `|u|` along and `|v|` across the heading (halved, to
+stay in [0, 1]), and the heading difference `|wrap(a - b)| / pi`. A hand that places a box
+sweeps a footprint that turns with its heading, so whether it meets the box beside it is a
+function of the offset in the hand's frame, not of `|dx|, |dy|`: on pack's three box pairs the
+held-out AUC (leave one run out of 12, 148-259 points per type) went from 0.80-0.87 with the
+separation to 0.998-1.0 with the relative pose.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -84,7 +93,7 @@ class SpaceEncoder:
             start += var.width
         self.base_dim = start  # the variables' own columns; the separations follow them
         self.separations = _framed_pairs(self.vars) if separations else []
-        self.dim = start + sum(a.width for a, _ in self.separations)
+        self.dim = start + sum(_pair_width(a, b) for a, b in self.separations)
 
     # --- points <-> columns -------------------------------------------------------------
     def columns(self, points: Sequence[Mapping[str, Value]], where: str = "") -> Columns:
@@ -128,10 +137,14 @@ class SpaceEncoder:
                 )
         start = self.base_dim
         for a, b in self.separations:
-            z[:, start : start + a.width] = np.abs(
-                z[:, a.start : a.start + a.width] - z[:, b.start : b.start + b.width]
-            )
-            start += a.width
+            width = _pair_width(a, b)
+            za = z[:, a.start : a.start + a.width]
+            zb = z[:, b.start : b.start + b.width]
+            if width == RELATIVE_POSE_WIDTH:
+                z[:, start : start + width] = _relative_pose(za, zb, a.domain.heading)  # type: ignore[union-attr]
+            else:
+                z[:, start : start + width] = np.abs(za - zb)
+            start += width
         return z
 
     def decode(self, z: np.ndarray) -> Columns:
@@ -161,6 +174,36 @@ def _framed_pairs(variables: Sequence[_Var]) -> list[tuple[_Var, _Var]]:
         for b in framed[i + 1 :]
         if a.domain.frame == b.domain.frame and a.width == b.width  # type: ignore[union-attr]
     ]
+
+
+RELATIVE_POSE_WIDTH = 5
+
+
+def _pair_width(a: _Var, b: _Var) -> int:
+    """Columns a framed pair adds: the relative pose of two planar poses with one heading
+    dimension, else the separation per dimension."""
+    heading = a.domain.heading  # type: ignore[union-attr]
+    if heading is not None and heading == b.domain.heading:  # type: ignore[union-attr]
+        return RELATIVE_POSE_WIDTH
+    return a.width
+
+
+def _relative_pose(za: np.ndarray, zb: np.ndarray, heading: int) -> np.ndarray:
+    """`(n, 5)`: a's offset in b's heading frame and b's in a's (`|u|/2, |v|/2` each), then the
+    heading difference `|wrap(a - b)| / pi`, from encoded poses `(n, 3)` in [0, 1]."""
+    x, y = (i for i in range(3) if i != heading)
+    theta_a = 2 * math.pi * za[:, heading] - math.pi
+    theta_b = 2 * math.pi * zb[:, heading] - math.pi
+    dx = za[:, x] - zb[:, x]
+    dy = za[:, y] - zb[:, y]
+    out = np.empty((len(za), RELATIVE_POSE_WIDTH))
+    for column, theta in enumerate((theta_b, theta_a)):  # the sign of the offset drops out
+        cos, sin = np.cos(theta), np.sin(theta)
+        out[:, 2 * column] = np.abs(dx * cos + dy * sin) / 2
+        out[:, 2 * column + 1] = np.abs(dy * cos - dx * sin) / 2
+    turn = np.abs(za[:, heading] - zb[:, heading])
+    out[:, 4] = 2 * np.minimum(turn, 1.0 - turn)
+    return out
 
 
 def _field(where: str, i: int, name: str) -> str:

@@ -47,8 +47,14 @@ def grasp_domain() -> CategoricalDomain:
 
 def pose_domain(region: str | None = None) -> ContinuousDomain:
     """A placement seed (x, y, yaw) in [0, 1]^3, mapped into `region` by the world (its frame:
-    two seeds in one region are places side by side)."""
-    return ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], frame=region)
+    two seeds in one region are places side by side). The yaw seed is the placing hand's heading
+    in the region's axes, `(2 yaw - 1) pi` (`Scene.region_pose`), hence `heading=2`."""
+    return ContinuousDomain(
+        low=[0.0, 0.0, 0.0],
+        high=[1.0, 1.0, 1.0],
+        frame=region,
+        heading=2 if region is not None else None,
+    )
 
 
 def list_tasks() -> list[Task]:

@@ -69,6 +69,15 @@ def test_a_frame_added_to_a_stored_type_is_the_same_type() -> None:
         check_same_type(resolve(make_graph(pose_domain=moved)), stored.canonical)
 
 
+def test_a_heading_added_to_a_stored_framed_type_is_the_same_type() -> None:
+    """A type stored with frames only (before headings existed) keeps answering."""
+    framed = {"kind": "continuous", "low": [0, 0, 0], "high": [1, 1, 1], "frame": "region5"}
+    stored = resolve(make_graph(pose_domain=framed))
+    resolved = resolve(make_graph(pose_domain={**framed, "heading": 2}))
+    assert resolved.type_id == stored.type_id
+    check_same_type(resolved, stored.canonical)
+
+
 def test_collision_pair_shares_a_hash_but_conflicts() -> None:
     six, threes = (resolve(g) for g in collision_pair())
     assert six.type_id == threes.type_id

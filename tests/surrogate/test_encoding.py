@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from client.models import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain
@@ -106,3 +107,52 @@ def test_places_in_different_frames_add_nothing(second_frame: str | None) -> Non
 
 def test_search_distances_leave_separations_out() -> None:
     assert SpaceEncoder(framed_space("tray"), separations=False).dim == 9
+
+
+def planar_space() -> dict:
+    pose = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], frame="tray", heading=2)
+    return {"a": pose, "b": pose}
+
+
+def relative_pose(a: list[float], b: list[float]) -> np.ndarray:
+    encoder = SpaceEncoder(planar_space())
+    return encoder.encode(encoder.columns([{"a": a, "b": b}]))[0, encoder.base_dim :]
+
+
+def test_two_planar_poses_in_one_frame_add_their_relative_pose() -> None:
+    assert SpaceEncoder(planar_space()).dim == 3 + 3 + 5
+    # b's hand heads along +x (heading seed 0.5 is angle 0): a lies 0.2 ahead of it ...
+    ahead = relative_pose([0.7, 0.5, 0.75], [0.5, 0.5, 0.5])
+    np.testing.assert_allclose(ahead[:2], [0.1, 0.0], atol=1e-12)
+    # ... and b lies 0.2 across a's hand, which heads along +y (seed 0.75: angle pi / 2)
+    np.testing.assert_allclose(ahead[2:4], [0.0, 0.1], atol=1e-12)
+    np.testing.assert_allclose(ahead[4], 0.5)  # a quarter turn apart
+    # turned half a turn, b's hand sees a on the same line: the offset's sign drops out
+    np.testing.assert_allclose(
+        relative_pose([0.7, 0.5, 0.75], [0.5, 0.5, 0.0])[:2], [0.1, 0.0], atol=1e-12
+    )
+
+
+def test_relative_pose_does_not_change_when_the_whole_scene_turns() -> None:
+    """A quarter turn about the frame's centre moves both poses and both headings alike."""
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a, b = rng.uniform(0.1, 0.9, size=(2, 3))
+
+        def turned(p: np.ndarray) -> list[float]:
+            return [1.0 - p[1], p[0], (p[2] + 0.25) % 1.0]
+
+        np.testing.assert_allclose(
+            relative_pose(list(a), list(b)), relative_pose(turned(a), turned(b)), atol=1e-9
+        )
+
+
+def test_the_heading_difference_wraps_around_the_turn() -> None:
+    assert relative_pose([0.5, 0.5, 0.95], [0.5, 0.5, 0.05])[4] == pytest.approx(0.2)
+
+
+def test_a_heading_needs_a_framed_planar_pose() -> None:
+    with pytest.raises(ValidationError, match="heading needs a frame"):
+        ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], heading=2)
+    with pytest.raises(ValidationError, match="heading needs a frame"):
+        ContinuousDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", heading=1)
