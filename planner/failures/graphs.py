@@ -12,18 +12,29 @@ Labels are task-independent: operator names, workspace constant and body names, 
 kinds. Decision labels stay unique by recency: the latest `#dir` in the graph is `#dir`, the one
 before `#dir-1`, and so on, so the two grasps of the regrasp task stay apart while a failure at
 the first grasp of any task gets the same labels. `bind` maps those labels back to this task's
-variables.
+variables. Decisions are chained in the order they were taken (`then` edges): placing a held body
+(`Inv-kin(body, #pose, #dir)` with the grasp chosen first) and grasping a body where it was put
+(the same call with the place chosen first) are different constraints, not one type.
+
+A grasp that holds a body being placed is encoded as the placing hand sees it: a placement's yaw
+is the hand's heading, so for a body with a square footprint every side grasp puts the same
+hand pose over the same footprint (all 60 shelf placements tried with `front` and `right` agreed),
+and what one side grasp taught about a place holds for the others. Its embedding there is the
+approach's horizontal and vertical share (`HELD_GRASP`), not the robot-relative direction.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 from dataclasses import dataclass
 
-from client.models import Edge, Graph, Node
+from client.models import CategoricalDomain, Edge, Graph, Node
 from planner.skeleton import DecisionVar, OperatorCall, Skeleton
 from planner.world import CheckResult
 
 PLACE_KINDS = ("#pose",)
+GRASP_KINDS = ("#dir",)
 
 
 @dataclass(frozen=True)
@@ -115,8 +126,46 @@ class _Builder:
         return placing
 
 
-def label_decisions(skeleton: Skeleton, nodes: dict[str, Node], chosen: dict[str, DecisionVar]):
-    """Rename decision vertexes by recency within the graph: `#dir`, `#dir-1`, ..."""
+def held_grasp_domain(domain: CategoricalDomain) -> CategoricalDomain:
+    """The grasp as the hand placing a body sees it: each choice's approach vector (its
+    embedding) reduced to its horizontal and vertical share, so that side grasps are one."""
+    if domain.embedding is None:
+        return domain
+    return domain.model_copy(
+        update={
+            "embedding": {
+                choice: [math.hypot(*vector[:-1]), abs(vector[-1])]
+                for choice, vector in domain.embedding.items()
+            }
+        }
+    )
+
+
+def held_grasps(
+    skeleton: Skeleton, call: OperatorCall, square_bodies: frozenset[str]
+) -> frozenset[str]:
+    """The grasp variables of `call` that hold a body being placed by it: a grasp argument
+    chosen before a placement argument of the same body, for a body with a square footprint."""
+    if not call.args or call.args[0] not in square_bodies:
+        return frozenset()
+    order = {v.var: i for i, v in enumerate(skeleton.decisions)}
+    kinds = {v.var: v.kind for v in skeleton.decisions}
+    places = [order[a] for a in call.args if kinds.get(a) in PLACE_KINDS]
+    return frozenset(
+        a
+        for a in call.args
+        if kinds.get(a) in GRASP_KINDS and any(order[a] < place for place in places)
+    )
+
+
+def label_decisions(
+    skeleton: Skeleton,
+    nodes: dict[str, Node],
+    chosen: dict[str, DecisionVar],
+    held: frozenset[str] = frozenset(),
+) -> dict[str, str]:
+    """Rename decision vertexes by recency within the graph: `#dir`, `#dir-1`, ...; the grasps
+    in `held` get the held-grasp encoding (`held_grasp_domain`)."""
     order = [v.var for v in skeleton.decisions]
     bind: dict[str, str] = {}
     by_kind: dict[str, list[str]] = {}
@@ -126,20 +175,34 @@ def label_decisions(skeleton: Skeleton, nodes: dict[str, Node], chosen: dict[str
         by_kind[kind].append(var)
         label = kind if rank == 0 else f"{kind}-{rank}"
         node = nodes[f"d:{var}"]
-        nodes[f"d:{var}"] = Node(
-            id=node.id, role="decision", label=label, domain=chosen[var].domain
-        )
+        domain = chosen[var].domain
+        if var in held and isinstance(domain, CategoricalDomain):
+            domain = held_grasp_domain(domain)
+        nodes[f"d:{var}"] = Node(id=node.id, role="decision", label=label, domain=domain)
         bind[label] = var
     return bind
 
 
+def chain_decisions(builder: _Builder) -> None:
+    """`then` edges from each decision of the graph to the next one taken."""
+    order = [v.var for v in builder.skeleton.decisions]
+    taken = sorted(builder.decisions, key=order.index)
+    for earlier, later in itertools.pairwise(taken):
+        builder.edge(f"d:{earlier}", f"d:{later}", "then")
+
+
 def failure_graph(
-    skeleton: Skeleton, transition_index: int, check: CheckResult, culprit: str | None = None
+    skeleton: Skeleton,
+    transition_index: int,
+    check: CheckResult,
+    culprit: str | None = None,
+    square_bodies: frozenset[str] = frozenset(),
 ) -> FailureGraph:
     """The causal graph of `check` failing in transition layer `transition_index`.
 
     `culprit` overrides the check's first culprit (used to enumerate the graphs a task could
-    produce); by default the body most in contact is taken, as the authors do.
+    produce); by default the body most in contact is taken, as the authors do. `square_bodies`:
+    the bodies whose side grasps are one when they are placed (see the module docstring).
     """
     layer = skeleton.transitions[transition_index]
     call_index = layer.calls.index(check.call)
@@ -153,7 +216,9 @@ def failure_graph(
         builder.edge(body_id, "failure", "collides")
         if placing is not None:
             builder.edge(builder.decision(placing), body_id, "at")
-    bind = label_decisions(skeleton, builder.nodes, builder.decisions)
+    chain_decisions(builder)
+    held = held_grasps(skeleton, check.call, square_bodies)
+    bind = label_decisions(skeleton, builder.nodes, builder.decisions, held)
     graph = _task_independent_ids(builder.nodes, builder.edges)
     return FailureGraph(graph, bind, (transition_index, call_index), body)
 

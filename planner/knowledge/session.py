@@ -102,11 +102,11 @@ class KnowledgeStats:
 
 
 @lru_cache(maxsize=16)
-def _task_graphs(skeleton: str) -> dict[Key, FailureGraph]:
-    """The failure graphs of one skeleton (by its repr), shared by the sessions of a process. A
-    graph depends only on the skeleton, the check and the culprit, and a planner process (a
-    bench worker, a planner loop) plans one task many times: building the ~120 graphs prematch
-    looks up took 28-100 ms per run."""
+def _task_graphs(skeleton: str, square_bodies: frozenset[str]) -> dict[Key, FailureGraph]:
+    """The failure graphs of one skeleton (by its repr) and set of square bodies, shared by the
+    sessions of a process. A graph depends only on these, the check and the culprit, and a
+    planner process (a bench worker, a planner loop) plans one task many times: building the
+    ~120 graphs prematch looks up took 28-100 ms per run."""
     return {}
 
 
@@ -133,7 +133,8 @@ class KnowledgeSession:
         self.worker = worker
         self.stats = KnowledgeStats()
         self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
-        self._graphs = _task_graphs(repr(self.skeleton))
+        self._square_bodies: frozenset[str] = getattr(world, "square_bodies", frozenset())
+        self._graphs = _task_graphs(repr(self.skeleton), self._square_bodies)
         self._active: dict[Key, Activation] = {}
         self._by_check: dict[tuple[int, int], list[tuple[Key, Activation]]] = {}
         self._pending: list[tuple[Key, FailureGraph, dict[str, Value], bool]] = []
@@ -164,7 +165,7 @@ class KnowledgeSession:
 
     def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
         if key not in self._graphs:
-            self._graphs[key] = failure_graph(self.skeleton, t, check, culprit)
+            self._graphs[key] = failure_graph(self.skeleton, t, check, culprit, self._square_bodies)
         return self._graphs[key]
 
     def _match(self, *, only_existing: bool) -> int:

@@ -57,6 +57,12 @@ class PyBulletWorld:
             *self.scene.movable_names,
             "robot",
         )
+        # Bodies whose side grasps place alike (see `planner.failures.graphs`).
+        self.square_bodies = frozenset(
+            name
+            for name in self.scene.movable_names
+            if abs(self.scene.sizes[name][0] - self.scene.sizes[name][1]) < 1e-9
+        )
         self.restore(self._initial)
 
     @property

@@ -146,3 +146,39 @@ def test_a_culprit_that_is_also_an_argument_gives_one_edge_with_both_relations()
     assert ("c:body", "failure", "arg0+collides") in {
         (e.source, e.target, e.label) for e in fg.graph.edges
     }
+
+
+def test_placing_with_a_grasp_and_grasping_at_a_place_are_different_graphs():
+    """Inv-kin(body, #pose13, #dir1) places the held body; Inv-kin(body, #pose13, #dir2) grasps
+    it where it was put: the same call shape, different constraints."""
+    skeleton = regrasp_skeleton()
+    place = failure_graph(skeleton, 1, CheckResult(skeleton.transitions[1].calls[0], False))
+    pick = failure_graph(skeleton, 2, CheckResult(skeleton.transitions[2].calls[0], False))
+    assert roles(place.graph) == roles(pick.graph)
+    assert ("d:#dir", "d:#pose", "then") in {
+        (e.source, e.target, e.label) for e in place.graph.edges
+    }
+    assert ("d:#pose", "d:#dir", "then") in {
+        (e.source, e.target, e.label) for e in pick.graph.edges
+    }
+    assert place.graph != pick.graph
+
+
+def grasp_domain_of(fg) -> object:
+    return next(n.domain for n in fg.graph.nodes if n.label == "#dir")
+
+
+def test_a_square_body_being_placed_sees_its_side_grasps_as_one():
+    skeleton = regrasp_skeleton()
+    square = frozenset({"body"})
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)  # Inv-kin(body, #pose12, #dir2)
+    held = grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, square_bodies=square))
+    assert held.choices == GRASP_DOMAIN.choices
+    sides = {tuple(held.embedding[c]) for c in ("front", "right", "back", "left")}
+    assert sides == {(1.0, 0.0)} and held.embedding["top"] == [0.0, 1.0]
+    # not placing (the regrasp picks at #pose13), or not square: the robot-relative directions
+    pick_ik = CheckResult(skeleton.transitions[2].calls[0], False)
+    assert grasp_domain_of(failure_graph(skeleton, 2, pick_ik, square_bodies=square)) == (
+        GRASP_DOMAIN
+    )
+    assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik)) == GRASP_DOMAIN
