@@ -20,7 +20,7 @@ A grasp that holds a body being placed is encoded as the placing hand sees it: a
 is the hand's heading, so for a body with a square footprint every side grasp puts the same
 hand pose over the same footprint (all 60 shelf placements tried with `front` and `right` agreed),
 and what one side grasp taught about a place holds for the others. Its embedding there is the
-approach's horizontal and vertical share (`HELD_GRASP`), not the robot-relative direction.
+approach's horizontal and vertical share (`held_grasp_domain`), not the robot-relative direction.
 """
 
 from __future__ import annotations
