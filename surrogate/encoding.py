@@ -137,14 +137,12 @@ class SpaceEncoder:
                 )
         start = self.base_dim
         for a, b in self.separations:
-            width = _pair_width(a, b)
             za = z[:, a.start : a.start + a.width]
             zb = z[:, b.start : b.start + b.width]
-            if width == RELATIVE_POSE_WIDTH:
-                z[:, start : start + width] = _relative_pose(za, zb, a.domain.heading)  # type: ignore[union-attr]
-            else:
-                z[:, start : start + width] = np.abs(za - zb)
-            start += width
+            heading = _shared_heading(a, b)
+            pair = np.abs(za - zb) if heading is None else _relative_pose(za, zb, heading)
+            z[:, start : start + pair.shape[1]] = pair
+            start += pair.shape[1]
         return z
 
     def decode(self, z: np.ndarray) -> Columns:
@@ -179,13 +177,16 @@ def _framed_pairs(variables: Sequence[_Var]) -> list[tuple[_Var, _Var]]:
 RELATIVE_POSE_WIDTH = 5
 
 
+def _shared_heading(a: _Var, b: _Var) -> int | None:
+    """The heading dimension of a framed pair of planar poses, None unless both declare it."""
+    heading = a.domain.heading  # type: ignore[union-attr]
+    return heading if heading == b.domain.heading else None  # type: ignore[union-attr]
+
+
 def _pair_width(a: _Var, b: _Var) -> int:
     """Columns a framed pair adds: the relative pose of two planar poses with one heading
     dimension, else the separation per dimension."""
-    heading = a.domain.heading  # type: ignore[union-attr]
-    if heading is not None and heading == b.domain.heading:  # type: ignore[union-attr]
-        return RELATIVE_POSE_WIDTH
-    return a.width
+    return a.width if _shared_heading(a, b) is None else RELATIVE_POSE_WIDTH
 
 
 def _relative_pose(za: np.ndarray, zb: np.ndarray, heading: int) -> np.ndarray:

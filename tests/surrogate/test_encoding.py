@@ -133,6 +133,14 @@ def test_two_planar_poses_in_one_frame_add_their_relative_pose() -> None:
     )
 
 
+def test_framed_pairs_without_a_heading_keep_their_separation_at_any_width() -> None:
+    place = ContinuousDomain(low=[0.0] * 5, high=[1.0] * 5, frame="tray")
+    encoder = SpaceEncoder({"a": place, "b": place})
+    z = encoder.encode(encoder.columns([{"a": [0.1] * 5, "b": [0.4] * 5}]))
+    assert encoder.dim == 15
+    np.testing.assert_allclose(z[0, 10:], [0.3] * 5)
+
+
 def test_relative_pose_does_not_change_when_the_whole_scene_turns() -> None:
     """A quarter turn about the frame's centre moves both poses and both headings alike."""
     rng = np.random.default_rng(0)
