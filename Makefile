@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.cpkb-installed
 
-.PHONY: setup demo test lint format bench clean
+.PHONY: setup demo test lint format bench clean lock
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -37,3 +37,7 @@ bench: setup
 
 clean:
 	rm -rf $(VENV) build *.egg-info
+
+# The image's pinned runtime dependencies, from this (tested) environment.
+lock: setup
+	$(BIN)/python deploy/lock.py

@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 COMPOSE = ROOT / "docker-compose.yml"
 _VAR = re.compile(r"\$\{(\w+)(?::?([-?])([^}]*))?\}|\$(\w+)")
 # Values for the variables compose requires (`${X:?...}`) when the file is interpolated here.
-REQUIRED_VALUES = {"CPKB_TOKEN": "example-token"}
+REQUIRED_VALUES = {"CPKB_TOKEN": "example-token", "CPKB_DB_PASSWORD": "example-password"}
 
 
 def interpolate(text: str) -> str:
@@ -69,10 +69,17 @@ def _planner_invocations(service: dict[str, Any]) -> list[list[str]]:
     """The `cpkb` commands the worker's loop script runs, with the compose arguments filled in."""
     command = service["command"]
     assert command[:2] == ["sh", "/app/deploy/planner-loop.sh"]
-    kb_url, kb, tasks, method, runs = command[2:]
-    assert int(runs) >= 1
+    kb_url, kb, tasks, method, runs, max_rollouts = command[2:]
+    assert int(runs) >= 1 and int(max_rollouts) >= 1
     script = (ROOT / "deploy" / "planner-loop.sh").read_text()
-    values = {"kb_url": kb_url, "kb": kb, "method": method, "seed": "0", "i": "0"}
+    values = {
+        "kb_url": kb_url,
+        "kb": kb,
+        "method": method,
+        "seed": "0",
+        "i": "0",
+        "max_rollouts": max_rollouts,
+    }
     invocations = []
     for task in tasks.split(","):
         values["task"] = task
@@ -164,7 +171,7 @@ def test_docker_compose_accepts_the_file() -> None:
         [docker, "compose", "-f", str(COMPOSE), "config", "--quiet"],
         capture_output=True,
         text=True,
-        env={"CPKB_TOKEN": "example-token", "PATH": "/usr/bin:/bin:/usr/local/bin"},
+        env={**REQUIRED_VALUES, "PATH": "/usr/bin:/bin:/usr/local/bin"},
     )
     assert result.returncode == 0, result.stderr
 
@@ -178,3 +185,17 @@ def test_the_workers_run_tasks_that_ship(services: dict[str, Any]) -> None:
     benched = set(bench[bench.index("--tasks") + 1].split(","))
     assert planned and benched
     assert planned | benched <= shipped
+
+
+def test_secrets_have_no_defaults_and_stay_off_command_lines() -> None:
+    raw = yaml.safe_load(COMPOSE.read_text())
+    text = COMPOSE.read_text()
+    for secret in REQUIRED_VALUES:
+        assert re.search(r"\$\{" + secret + r":-", text) is None, f"{secret} has a default"
+    for name, service in raw["services"].items():
+        command = " ".join(service.get("command", []) if isinstance(service, dict) else [])
+        assert "CPKB_TOKEN" not in command and "--token" not in command, name
+
+
+def test_the_planner_worker_is_restarted_when_it_gives_up(services: dict[str, Any]) -> None:
+    assert services["planner"]["restart"] in {"on-failure", "unless-stopped", "always"}
