@@ -1,0 +1,5 @@
+"""The knowledge-base service."""
+
+from importlib.metadata import version
+
+__version__ = version("cpkb")

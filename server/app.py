@@ -8,7 +8,7 @@ from contextlib import asynccontextmanager
 
 from fastapi import Depends, FastAPI
 
-from cpkb import __version__
+from server import __version__
 from server.api import INSTALLERS, ROUTERS
 from server.db import Store
 from server.errors import install_error_handlers

@@ -20,11 +20,28 @@ COMMAND_MODULES = (
 
 
 class CliError(Exception):
-    """A user mistake: printed as one line on stderr, exit status 2."""
+    """A user mistake: printed as one line on stderr, exit status 2 (subclasses may differ)."""
+
+    exit_status = 2
+
+
+USAGE = """\
+cpkb learns where a workspace's geometric constraints lie from every failed binding search
+(CP-BO: Ren et al., Learning Geometric Constraints in Task and Motion Planning) and uses that
+knowledge to guide the next search, in any task of the same workspace.
+
+Start with `cpkb demo`; `cpkb plan` runs one search, `cpkb serve` a knowledge base that many
+planners share, `cpkb bench` the paper's evaluation. `cpkb COMMAND --help` explains each.
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="cpkb", description=__doc__.splitlines()[0])
+    from importlib.metadata import version
+
+    parser = argparse.ArgumentParser(
+        prog="cpkb", description=USAGE, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--version", action="version", version=f"cpkb {version('cpkb')}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         try:
@@ -51,6 +68,6 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.handler(args) or 0)
     except CliError as exc:
         print(f"cpkb {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return exc.exit_status
     except KeyboardInterrupt:
         return 130

@@ -6,7 +6,7 @@ from fastapi import APIRouter
 from sqlalchemy import text
 
 from client.models import Health
-from cpkb import __version__
+from server import __version__
 from server.api.deps import StoreDep
 
 router = APIRouter(tags=["health"])
