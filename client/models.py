@@ -10,7 +10,7 @@ import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
 MAX_LABEL = 128
 MAX_CHOICES = 64
@@ -19,9 +19,34 @@ MAX_BATCH = 32  # points in one suggest answer
 MAX_NODES = 64
 MAX_EDGES = 256
 MAX_POINTS_PER_POST = 1000
+MAX_SOURCE_DEPTH = 32  # nesting of lists and objects in a point's `source`
+MAX_SEED = 2**63 - 1
 
-Label = Annotated[str, Field(min_length=1, max_length=MAX_LABEL)]
-Value = str | list[float]
+
+def _storable(text: str) -> str:
+    """Text both backends store alike: PostgreSQL refuses NUL in text columns where SQLite keeps
+    it, and a lone surrogate (JSON's "\\ud800") is not UTF-8, so no database can store it."""
+    if "\x00" in text:
+        raise ValueError("must not contain NUL (\\u0000) characters")
+    if not text.isascii():
+        try:
+            text.encode("utf-8")
+        except UnicodeEncodeError:
+            raise ValueError("must not contain lone surrogates (\\ud800-\\udfff)") from None
+    return text
+
+
+def _not_boolean(value: Any) -> Any:
+    """JSON `true` is not the number 1: a flag sent as a coordinate is a mistake."""
+    if isinstance(value, bool):
+        raise ValueError("a boolean is not a number")
+    return value
+
+
+Text = Annotated[str, AfterValidator(_storable)]
+Number = Annotated[float, BeforeValidator(_not_boolean)]
+Label = Annotated[Text, Field(min_length=1, max_length=MAX_LABEL)]
+Value = Text | list[Number]
 
 
 class _Strict(BaseModel):
@@ -34,7 +59,7 @@ class CategoricalDomain(_Strict):
 
     kind: Literal["categorical"] = "categorical"
     choices: list[Label] = Field(min_length=1, max_length=MAX_CHOICES)
-    embedding: dict[str, list[float]] | None = None
+    embedding: dict[Label, list[Number]] | None = None
 
     @model_validator(mode="after")
     def _check(self) -> CategoricalDomain:
@@ -65,8 +90,8 @@ class ContinuousDomain(_Strict):
     places the other (see `surrogate.encoding`)."""
 
     kind: Literal["continuous"] = "continuous"
-    low: list[float] = Field(min_length=1, max_length=MAX_DIM)
-    high: list[float] = Field(min_length=1, max_length=MAX_DIM)
+    low: list[Number] = Field(min_length=1, max_length=MAX_DIM)
+    high: list[Number] = Field(min_length=1, max_length=MAX_DIM)
     frame: Label | None = None
     heading: int | None = Field(default=None, ge=0, le=2)
 
@@ -97,7 +122,7 @@ class Node(_Strict):
 class Edge(_Strict):
     source: Label
     target: Label
-    label: Annotated[str, Field(max_length=MAX_LABEL)] = ""
+    label: Annotated[Text, Field(max_length=MAX_LABEL)] = ""
 
 
 class Graph(_Strict):
@@ -108,15 +133,52 @@ class Graph(_Strict):
 
 
 class Source(BaseModel):
-    """Provenance of a point; extra keys are kept."""
+    """Provenance of a point; extra keys are kept: any JSON nested at most MAX_SOURCE_DEPTH
+    deep (every reader of the point must be able to serialise it back), text storable as in
+    the rest of the contract."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(
+        extra="allow",
+        json_schema_extra={"x-max-depth": MAX_SOURCE_DEPTH},
+    )
 
-    task: str | None = Field(default=None, max_length=MAX_LABEL)
-    run: str | None = Field(default=None, max_length=MAX_LABEL)
+    task: Text | None = Field(default=None, max_length=MAX_LABEL)
+    run: Text | None = Field(default=None, max_length=MAX_LABEL)
     rollout: int | None = None
-    worker: str | None = Field(default=None, max_length=MAX_LABEL)
+    worker: Text | None = Field(default=None, max_length=MAX_LABEL)
     time: datetime | None = None
+
+    @model_validator(mode="after")
+    def _check_extra(self) -> Source:
+        for key, value in (self.model_extra or {}).items():
+            _storable_at(key, "a key of source")
+            _check_json(value, key, 1)
+        return self
+
+
+def _check_json(value: Any, where: str, depth: int) -> None:
+    """Every key and string of `value` storable; lists and objects at most MAX_SOURCE_DEPTH
+    deep, counting the `source` object itself as the first level (`depth`: its container's)."""
+    if isinstance(value, str):
+        _storable_at(value, where)
+        return
+    if not isinstance(value, dict | list):
+        return
+    if depth >= MAX_SOURCE_DEPTH:
+        raise ValueError(f"{where!a}: nested deeper than {MAX_SOURCE_DEPTH} levels")
+    items = value.items() if isinstance(value, dict) else enumerate(value)
+    for key, item in items:
+        if isinstance(key, str):
+            _storable_at(key, f"a key in {where}")
+        inner = f"{where}.{key}" if isinstance(key, str) else f"{where}[{key}]"
+        _check_json(item, inner, depth + 1)
+
+
+def _storable_at(text: str, where: str) -> None:
+    try:
+        _storable(text)
+    except ValueError as exc:
+        raise ValueError(f"{where!a}: {exc}") from None
 
 
 class PointIn(_Strict):
@@ -124,7 +186,7 @@ class PointIn(_Strict):
     x: dict[Label, Value]
     feasible: bool
     source: Source | None = None
-    key: Annotated[str, Field(min_length=1, max_length=200)] | None = None
+    key: Annotated[Text, Field(min_length=1, max_length=200)] | None = None
 
 
 class PointsIn(_Strict):
@@ -152,7 +214,16 @@ class MatchResult(BaseModel):
 
 
 class KnowledgeBaseIn(_Strict):
+    """A name that is one path segment of the API's URLs: `.` and `..` are not (clients and
+    proxies resolve them away)."""
+
     name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
+
+    @model_validator(mode="after")
+    def _check_name(self) -> KnowledgeBaseIn:
+        if self.name in (".", ".."):
+            raise ValueError(f"{self.name!r} is a path step, not a knowledge-base name")
+        return self
 
 
 class KnowledgeBase(BaseModel):
@@ -234,7 +305,7 @@ class SuggestIn(_Strict):
     constraints: list[Constraint] = Field(default_factory=list, max_length=64)
     exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
     lookahead: list[Label] = Field(default_factory=list, max_length=MAX_DIM)
-    seed: int | None = None
+    seed: int | None = Field(default=None, ge=0, le=MAX_SEED)
     n: int = Field(1, ge=1, le=MAX_BATCH)
 
 
@@ -245,12 +316,17 @@ class SuggestedPoint(BaseModel):
 
 
 class SuggestOut(BaseModel):
-    model_config = ConfigDict(extra="allow")
+    """`method`: how the point was found (mpf, space-filling; `-local` in a planner's own
+    process); `n_fitted`: the fit each type's model came from; `n_pending`: the pending
+    suggestions it was kept away from."""
 
     x: dict[str, Value]
     mpf: float
     p_feasible: dict[str, float]
     batch: list[SuggestedPoint] = Field(default_factory=list)
+    method: str = "mpf"
+    n_fitted: dict[str, int] = Field(default_factory=dict)
+    n_pending: int = 0
 
 
 class ModelsIn(_Strict):
@@ -258,7 +334,7 @@ class ModelsIn(_Strict):
     those types out unless their model has changed since."""
 
     type_ids: list[Label] = Field(min_length=1, max_length=64)
-    known: dict[Label, str] = Field(default_factory=dict)
+    known: dict[Label, Text] = Field(default_factory=dict)
 
 
 class ModelSnapshot(BaseModel):

@@ -14,6 +14,8 @@ from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError, IntegrityError, OperationalError, SQLAlchemyError
 
 log = logging.getLogger("cpkb.server")
+FOREIGN_KEY_VIOLATION = "23503"  # PostgreSQL's SQLSTATE
+MAX_ECHOED_INPUT = 200  # characters of a rejected string a 422 answer repeats
 
 
 class ServiceError(Exception):
@@ -50,9 +52,20 @@ def _first_line(exc: SQLAlchemyError) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+def _refers_to_deleted_row(exc: IntegrityError) -> bool:
+    """A foreign key violation: the write refers to a knowledge base or type that a concurrent
+    DELETE removed after this transaction looked it up (PostgreSQL's read committed)."""
+    orig = getattr(exc, "orig", None)
+    sqlstate = getattr(orig, "sqlstate", None)
+    return sqlstate == FOREIGN_KEY_VIOLATION or "FOREIGN KEY constraint failed" in str(orig)
+
+
 def map_db_error(exc: SQLAlchemyError) -> ServiceError:
-    """A database error as a client-facing error: constraint -> 409, bad value -> 422,
-    anything operational (locked, timeout, connection lost) -> 503."""
+    """A database error as a client-facing error: a vanished parent -> 404, any other
+    constraint -> 409, bad value -> 422, anything operational (locked, timeout, connection
+    lost) -> 503."""
+    if isinstance(exc, IntegrityError) and _refers_to_deleted_row(exc):
+        return NotFound("the knowledge base or type this write refers to was deleted meanwhile")
     if isinstance(exc, IntegrityError):
         return Conflict(f"the write conflicts with stored data: {_first_line(exc)}")
     if isinstance(exc, DataError):
@@ -66,7 +79,7 @@ def map_db_error(exc: SQLAlchemyError) -> ServiceError:
 
 def _answer(exc: ServiceError) -> JSONResponse:
     headers = {"Retry-After": "1"} if isinstance(exc, Unavailable) else None
-    return JSONResponse({"detail": exc.detail}, status_code=exc.status, headers=headers)
+    return JSONResponse({"detail": _encodable(exc.detail)}, status_code=exc.status, headers=headers)
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -80,12 +93,36 @@ def install_error_handlers(app: FastAPI) -> None:
 
     async def validation_error(_: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)
-        detail = _finite(jsonable_encoder(exc.errors()))
+        errors = [_without_bulky_input(error) for error in exc.errors()]
+        detail = _encodable(_finite(jsonable_encoder(errors)))
         return JSONResponse({"detail": detail}, status_code=422)
 
     app.add_exception_handler(ServiceError, service_error)
     app.add_exception_handler(SQLAlchemyError, database_error)
     app.add_exception_handler(RequestValidationError, validation_error)
+
+
+def _without_bulky_input(error: dict[str, Any]) -> dict[str, Any]:
+    """A validation error echoes the rejected value only when it is a short scalar: echoing a
+    whole rejected body (megabytes, or nested deeper than the encoder goes) helps nobody."""
+    value = error.get("input")
+    short = value is None or isinstance(value, bool | int | float)
+    short = short or (isinstance(value, str) and len(value) <= MAX_ECHOED_INPUT)
+    return error if short else {k: v for k, v in error.items() if k != "input"}
+
+
+def _encodable(value: Any) -> Any:
+    """Strings that UTF-8 can encode: a lone surrogate (JSON's "\\ud800") in a key or value
+    that an answer names is sent as its escape, not as an error while answering."""
+    if isinstance(value, str):
+        if value.isascii():
+            return value
+        return value.encode("utf-8", "backslashreplace").decode("utf-8")
+    if isinstance(value, dict):
+        return {_encodable(k): _encodable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_encodable(v) for v in value]
+    return value
 
 
 def _finite(value: Any) -> Any:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 from collections import defaultdict
 from collections.abc import Iterable, Iterator
@@ -18,7 +19,7 @@ from typing import Any
 from sqlalchemy import bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
-from client.models import PointIn, PointOut, PointResult, PointsPage
+from client.models import MAX_SOURCE_DEPTH, PointIn, PointOut, PointResult, PointsPage
 from server.db import Store
 from server.errors import InvalidInput
 from server.graphs import GraphError, ResolvedGraph, check_x
@@ -234,9 +235,22 @@ def _count(session: Session, inserted: list[dict[str, Any]], now: Any) -> None:
         )
 
 
+def _readable(value: Any, depth: int = 1) -> Any:
+    """A stored `source` as it can be answered: a part nested deeper than MAX_SOURCE_DEPTH
+    (stored before ingest bounded the depth) is given as its JSON text, so that the type's
+    points stay readable."""
+    if not isinstance(value, dict | list):
+        return value
+    if depth > MAX_SOURCE_DEPTH:
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return {k: _readable(v, depth + 1) for k, v in value.items()}
+    return [_readable(v, depth + 1) for v in value]
+
+
 def _point_out(row: PointRow, type_id: str) -> PointOut:
     source = {name: getattr(row, name) for name in PROVENANCE if getattr(row, name) is not None}
-    source.update(row.extra or {})
+    source.update(_readable(row.extra or {}))
     return PointOut(
         point_id=row.id,
         type_id=type_id,
@@ -249,10 +263,11 @@ def _point_out(row: PointRow, type_id: str) -> PointOut:
 
 
 def parse_cursor(cursor: str | None) -> int | None:
+    """A point id this server gave out as `next_cursor`: ASCII digits within 64 bits."""
     if cursor is None or cursor == "":
         return None
-    if not cursor.isdigit() or len(cursor) > 19:
-        raise InvalidInput(f"cursor: {cursor!r} is not a cursor this server gave out")
+    if not (cursor.isascii() and cursor.isdigit()) or len(cursor) > 19 or int(cursor) > INT64:
+        raise InvalidInput(f"cursor: {cursor!a} is not a cursor this server gave out")
     return int(cursor)
 
 
