@@ -3,12 +3,15 @@
 `runs.jsonl` gets one line per finished run, flushed and fsynced as it lands, so a bench
 killed at any moment keeps every run it finished and a rerun skips them. Runs that raised
 go to `errors.jsonl` and are retried by a rerun. `bench.json` pins the settings that make
-results comparable (the rollout caps); a rerun with other caps is refused.
+results comparable (the rollout caps); a rerun with other caps is refused. A `runs.jsonl.xz`
+or `.gz` beside it (how finished runs are kept in the repository) is read as finished runs too.
 """
 
 from __future__ import annotations
 
+import gzip
 import json
+import lzma
 import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -17,6 +20,7 @@ from typing import Any
 from cpkb.bench.scenarios import Scenario
 
 RUNS_FILE = "runs.jsonl"
+COMPRESSED_RUNS_FILES = ("runs.jsonl.xz", "runs.jsonl.gz")
 ERRORS_FILE = "errors.jsonl"
 CONFIG_FILE = "bench.json"
 
@@ -28,7 +32,8 @@ class BenchConfigError(ValueError):
 def _read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
     if not path.exists():
         return
-    with path.open(encoding="utf-8") as handle:
+    opener = {".xz": lzma.open, ".gz": gzip.open}.get(path.suffix, open)
+    with opener(path, "rt", encoding="utf-8") as handle:
         for line in handle:
             line = line.strip()
             if not line:
@@ -47,6 +52,7 @@ class ResultStore:
     def __init__(self, out_dir: Path | str) -> None:
         self.out_dir = Path(out_dir)
         self.runs_path = self.out_dir / RUNS_FILE
+        self.compressed_runs_paths = [self.out_dir / name for name in COMPRESSED_RUNS_FILES]
         self.errors_path = self.out_dir / ERRORS_FILE
         self.config_path = self.out_dir / CONFIG_FILE
 
@@ -70,7 +76,8 @@ class ResultStore:
     def records(self) -> list[dict[str, Any]]:
         """Finished runs, one per scenario (the first line wins if a key repeats)."""
         seen: dict[tuple[str, str, int], dict[str, Any]] = {}
-        for record in _read_jsonl(self.runs_path):
+        paths = [*self.compressed_runs_paths, self.runs_path]
+        for record in (r for path in paths for r in _read_jsonl(path)):
             try:
                 key = (str(record["task"]), str(record["method"]), int(record["seed"]))
             except (KeyError, TypeError, ValueError):

@@ -1,15 +1,24 @@
-"""The summary table and the plots, from hand-made result records."""
+"""The summary table and the plots, from hand-made result records and from a slice of a real
+bench kept compressed, as the repository keeps its runs."""
 
 from __future__ import annotations
 
+import shutil
 import statistics
 from pathlib import Path
 
 import pytest
 from scipy.stats import mannwhitneyu
 
+from cpkb.bench.app import BenchSettings, run_command
 from cpkb.bench.plots import write_plots
+from cpkb.bench.results import ResultStore
+from cpkb.bench.scenarios import expand
 from cpkb.bench.stats import markdown_table, summarize, write_summary
+
+# Desk, quasi-random and cp-bo-transfer, seeds 100-119 of `benchmarks/results/paper9`.
+PAPER9_DESK = Path(__file__).parent / "fixtures" / "paper9-desk"
+PAPER9_METHODS = ["quasi-random", "cp-bo-transfer"]
 
 
 def _records(task: str, method: str, rollouts: list[int], solved_cap: int = 2000) -> list[dict]:
@@ -75,3 +84,39 @@ def test_writes_table_files_and_png_plots(tmp_path: Path) -> None:
     assert (tmp_path / "summary.csv").read_text().startswith("task,method,n,solved_rate,")
     for png in paths[2:]:
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
+
+
+def test_compressed_runs_are_read_as_finished_runs() -> None:
+    store = ResultStore(PAPER9_DESK)
+    assert not store.runs_path.exists()
+    records = store.records()
+    assert len(records) == 40
+    assert store.pending(expand(["desk"], PAPER9_METHODS, range(100, 120))) == []
+    rows = summarize(records, ["desk"], PAPER9_METHODS)
+    qr, tr = (
+        [r["rollouts"] for r in records if r["method"] == method] for method in PAPER9_METHODS
+    )
+    assert rows[0].rollouts_mean == pytest.approx(statistics.mean(qr))
+    assert rows[1].rollouts_median == statistics.median(tr)
+    assert rows[1].p_value == pytest.approx(mannwhitneyu(tr, qr).pvalue)
+    assert 0 < rows[1].reduction_ci[0] < rows[1].reduction_pct < rows[1].reduction_ci[1]
+
+
+def test_summary_only_rebuilds_the_table_from_compressed_runs(tmp_path: Path) -> None:
+    out = tmp_path / "paper9-desk"
+    shutil.copytree(PAPER9_DESK, out)
+    settings = BenchSettings(
+        tasks=["desk"],
+        methods=PAPER9_METHODS,
+        seeds=range(100, 120),
+        workers=1,
+        out_dir=out,
+        summary_only=True,
+        quiet=True,
+    )
+    assert run_command(settings) == 0
+    table = (out / "summary.md").read_text()
+    assert "| desk | quasi-random | 20 | 100% |" in table
+    assert "| desk | cp-bo-transfer | 20 | 100% |" in table
+    assert (out / "rollouts.png").stat().st_size > 5000
+    assert not (out / "runs.jsonl").exists()
