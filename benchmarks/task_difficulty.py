@@ -1,8 +1,9 @@
 """How hard each task is: the fraction of fully random bindings that pass, where random ones
 fail, and (with --plan-seeds) rollouts to the first feasible binding under quasi-random PW-UCT.
 
-Used to tune the scenes: the issue asks for mean rollouts >= 10 on desk and >= 20 on regrasp
-and pack, with >= 99% of runs solved within 2,000. Writes benchmarks/results/task_difficulty.json.
+Used to tune the scenes so that a guided planner has something to save: mean rollouts of at
+least 10 on desk and 20 on regrasp and pack, with 99% of runs solved within 2,000.
+Writes benchmarks/results/task_difficulty.json.
 
     .venv/bin/python benchmarks/task_difficulty.py --bindings 200 --plan-seeds 5 --tasks desk,pack
 """
