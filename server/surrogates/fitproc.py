@@ -17,7 +17,7 @@ def init_worker(threads: int) -> None:
     """Process initialiser: die with the server, leave the other core to it, pay the
     first-fit cost now. The worker keeps the normal priority: at a lower one, planners that
     keep the cores busy starved it, and they were guided for hundreds of rollouts by fits
-    that knew none of their failures (`benchmarks/results/exploration3/README.md`)."""
+    that knew none of their failures (BENCHMARKS.md, "Measurements behind the defaults")."""
     parent = os.getppid()
     threading.Thread(target=_exit_when_orphaned, args=(parent,), daemon=True).start()
     torch.set_num_threads(threads)
