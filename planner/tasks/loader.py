@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from planner.tasks.checks import geometry_warnings
 from planner.tasks.schema import (
     BoxPart,
     Call,
@@ -43,6 +44,7 @@ OPERATORS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "Move-Place": (("body", "traj"), ()),
 }
 DECISION_OPERATORS = ("Sample-grasp", "Sample-pose")
+ROLES = ("target", "predecessor")
 _CALL = re.compile(r"^\s*([A-Za-z][\w-]*)\s*\(([^()]*)\)\s*(?:->\s*(.*?))?\s*$")
 _GOAL = re.compile(r"^\s*(On)\s*\(\s*([\w-]+)\s*,\s*([\w-]+)\s*\)\s*$")
 _NAME = re.compile(r"^[A-Za-z][\w-]*$")
@@ -314,7 +316,51 @@ def _resolve_workspace(r: _Reader, value: Any, task_path: Path) -> Path:
     return path
 
 
-def load_task_file(path: Path) -> Task:
+def is_task_file_reference(text: str) -> bool:
+    """A path (`../other/task.yaml`, `dir/task`) rather than a shipped task's name."""
+    return "/" in text or text.endswith((".yaml", ".yml"))
+
+
+def shipped_names() -> list[str]:
+    return sorted(p.stem for p in data_dir().glob("*.yaml"))
+
+
+def _predecessors(r: _Reader, raw: Any, path: Path, visiting: tuple[Path, ...]) -> tuple[str, ...]:
+    """The declared predecessors, each loaded (so a broken one is reported here) and checked
+    not to lead back to this task: shipped names as given, files as resolved paths."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, list) or not all(isinstance(x, str) and x for x in raw):
+        raise r.fail("predecessors", "expected a list of shipped task names or task file paths")
+    chain = (*visiting, path.resolve())
+    resolved: list[str] = []
+    for i, ref in enumerate(raw):
+        where = f"predecessors[{i}]"
+        if is_task_file_reference(ref):
+            target = (path.parent / ref).resolve()
+            if not target.is_file():
+                raise r.fail(where, f"no task file {ref!r} (looked for {target})")
+            name = str(target)
+        else:
+            target = (data_dir() / f"{ref}.yaml").resolve()
+            if not target.is_file():
+                known = ", ".join(shipped_names())
+                raise r.fail(where, f"no shipped task {ref!r} (shipped: {known}; or a .yaml path)")
+            name = ref
+        if target in chain:
+            loop = (*chain[chain.index(target) :], target)
+            raise r.fail(where, f"predecessors form a cycle: {' -> '.join(p.name for p in loop)}")
+        if name in resolved:
+            raise r.fail(where, f"{ref!r} is named twice")
+        try:
+            load_task_file(target, _visiting=chain)
+        except TaskError as exc:
+            raise r.fail(where, str(exc)) from None
+        resolved.append(name)
+    return tuple(resolved)
+
+
+def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
     r = _Reader(str(path))
     data = r.mapping(_read_yaml(path), "top level")
     allowed = {
@@ -326,8 +372,15 @@ def load_task_file(path: Path) -> Task:
         "skeleton",
         "goal",
         "settings",
+        "predecessors",
+        "role",
+        "kind",
     }
     r.only(data, allowed, "")
+    role = data.get("role")
+    if role not in (None, *ROLES):
+        raise r.fail("role", f"expected one of {', '.join(ROLES)}, got {role!r}")
+    kind = r.name(data["kind"], "kind") if "kind" in data else None
     try:
         workspace = load_workspace(_resolve_workspace(r, r.get(data, "workspace", ""), path))
     except TaskError as exc:
@@ -401,6 +454,7 @@ def load_task_file(path: Path) -> Task:
             for k, v in settings_raw.items()
         }
     )
+    predecessors = _predecessors(r, data.get("predecessors"), path, _visiting)
     return Task(
         name=r.name(data.get("task", path.stem), "task"),
         description=str(data.get("description", "")).strip(),
@@ -411,4 +465,8 @@ def load_task_file(path: Path) -> Task:
         layers=layers,
         goal=tuple(goals),
         settings=settings,
+        predecessors=predecessors,
+        role=role,
+        kind=kind,
+        warnings=geometry_warnings(workspace, bodies, layers),
     )

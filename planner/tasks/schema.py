@@ -127,3 +127,9 @@ class Task:
     layers: tuple[LayerSpec, ...]
     goal: tuple[Goal, ...]
     settings: PlannerSettings = field(default_factory=PlannerSettings)
+    # Tasks run into the knowledge base before this one by `cp-bo-transfer`, in order: shipped
+    # names as written, task files as resolved paths (what `load_task` and `run_plan` accept).
+    predecessors: tuple[str, ...] = ()
+    role: str | None = None  # "target" or "predecessor": how a suite directory is read
+    kind: str | None = None  # a free label (desk, regrasp, pack) to group a suite's results
+    warnings: tuple[str, ...] = ()  # geometry that loads but will not work (see loader)
