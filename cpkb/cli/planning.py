@@ -25,7 +25,10 @@ def register(subparsers: Any) -> None:
     plan.add_argument(
         "--full-budget",
         action="store_true",
-        help="keep searching after the first feasible binding list (fills the knowledge base)",
+        help="spend the whole --max-rollouts budget instead of stopping at the first feasible "
+        "binding list: every failure met is posted, so a predecessor task fills the knowledge "
+        "base for a later task (what cp-bo-transfer does with 30 rollouts per predecessor; "
+        "`cpkb types` shows when the fits have landed)",
     )
     plan.add_argument("--kb-url", help="knowledge-base service URL (default: an embedded one)")
     plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")

@@ -215,11 +215,17 @@ def _types(args: argparse.Namespace) -> int:
         "context",
         "points",
         "infeasible",
+        "fit",
+        "fitted",
         "updated",
         title=f"knowledge base {args.kb!r}: {len(types)} types",
+        caption="fit: the surrogate's state (ready, fitting, queued, prior, error); fitted: "
+        "points in its latest fit / points stored (a fit has landed when they are equal)",
     )
-    for t in types:
+    states = _run(args, lambda c: [c.get_type(args.kb, t.type_id).surrogate for t in types])
+    for t, state in zip(types, states, strict=True):
         updated = t.updated_at.strftime("%Y-%m-%d %H:%M:%S") if t.updated_at else ""
+        fit, fitted = _fit_state(state, t.n_points)
         table.add_row(
             t.type_id,
             t.failure,
@@ -227,7 +233,20 @@ def _types(args: argparse.Namespace) -> int:
             ", ".join(t.context),
             str(t.n_points),
             str(t.n_infeasible),
+            fit,
+            fitted,
             updated,
         )
     console.print(table)
     return 0
+
+
+def _fit_state(state: Any, n_points: int) -> tuple[str, str]:
+    """The surrogate's status (`pending` added while points wait for a fit) and n_fitted/n."""
+    if state is None:
+        return "off", "-"
+    status = state.status
+    if state.n_fitted < n_points and status not in ("fitting", "queued"):
+        status = f"{status}, pending"
+    version = f" v{state.version}" if state.version is not None else ""
+    return status + version, f"{state.n_fitted}/{n_points}"
