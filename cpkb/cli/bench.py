@@ -7,6 +7,7 @@ import os
 import re
 
 from cpkb.cli import CliError
+from cpkb.cli.reach import EXIT_STATUS_HELP, probe
 
 DEFAULT_TASKS = "desk,regrasp,pack"
 DEFAULT_METHODS = "quasi-random,mcts-bo,cp-bo,cp-bo-transfer,optuna-tpe"
@@ -65,6 +66,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "the same --out skips finished runs. Writes OUT/summary.md, OUT/summary.csv, "
             "OUT/rollouts.png and OUT/wall_time.png."
         ),
+        epilog="Exit status: 0 when every asked run has a result, 1 when runs failed or were "
+        f"left (time limit, interrupt), 2 for a usage error, {EXIT_STATUS_HELP}.",
     )
     parser.add_argument("--tasks", type=_csv_list, default=_csv_list(DEFAULT_TASKS))
     parser.add_argument(
@@ -110,7 +113,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
-    from cpkb.bench.app import BenchSettings, run_command
+    from cpkb.bench.app import BenchSettings, check_request, run_command
     from server.settings import Settings
 
     configured = Settings().token
@@ -132,6 +135,9 @@ def handle(args: argparse.Namespace) -> int:
         quiet=args.quiet,
     )
     try:
+        if args.kb_url is not None and not args.summary_only:
+            check_request(settings)
+            probe(args.kb_url, token)
         return run_command(settings)
     except ValueError as exc:
         raise CliError(str(exc)) from None

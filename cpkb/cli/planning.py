@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 from cpkb.cli import CliError
+from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
 
 METHODS = ("quasi-random", "mcts-bo", "cp-bo")
 
@@ -16,7 +17,7 @@ def register(subparsers: Any) -> None:
         "plan",
         help="search bindings for one task",
         epilog="Exit status: 0 when a feasible binding list was found, 1 when the budget ran "
-        "out, 2 for a usage error.",
+        f"out, 2 for a usage error, {EXIT_STATUS_HELP}.",
     )
     plan.add_argument("--task", required=True, help="a task name (see `cpkb tasks`) or task file")
     plan.add_argument("--method", default="cp-bo", help=f"{' | '.join(METHODS)} (default cp-bo)")
@@ -61,17 +62,48 @@ def register(subparsers: Any) -> None:
 
 
 def _run(args: argparse.Namespace, **kwargs: Any) -> Any:
-    """`run_plan` with user mistakes and an unreachable service turned into CLI errors."""
+    """`run_plan` with user mistakes and knowledge-base failures turned into CLI errors."""
     import httpx
 
+    from client import CpkbError
+    from cpkb.embedded import EmbeddedServiceError
     from planner.run import run_plan
 
     try:
         return run_plan(**kwargs)
+    except (CpkbError, EmbeddedServiceError, httpx.HTTPError) as exc:
+        raise explained(exc, args.kb_url or "the embedded service", kwargs["token"]) from None
     except (ValueError, KeyError, FileNotFoundError) as exc:
         raise CliError(str(exc).strip("'\"")) from exc
-    except httpx.HTTPError as exc:
-        raise CliError(f"knowledge base unreachable: {exc}") from exc
+
+
+def _check_task(task: str) -> None:
+    """Load the task's description (not its world), so a misspelled name fails at once."""
+    from planner.run import ANALYTIC_PREFIX
+
+    try:
+        if task.startswith(ANALYTIC_PREFIX):
+            from planner.search.analytic import analytic_world
+
+            analytic_world(task.removeprefix(ANALYTIC_PREFIX))
+        else:
+            from planner.tasks import load_task
+
+            load_task(task)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _check_knowledge(args: argparse.Namespace, token: str | None) -> None:
+    """Probe a given service before the search starts, when the method uses one."""
+    from planner.search import samplers
+
+    checked_kb_name(args.kb)
+    if args.kb_url is None or args.method not in samplers.methods():
+        return
+    checked_url(args.kb_url)
+    if samplers.uses_knowledge(args.method):
+        probe(args.kb_url, token, kb=args.kb)
 
 
 def _configured_token() -> str | None:
@@ -86,6 +118,8 @@ def _plan(args: argparse.Namespace) -> int:
     if args.max_rollouts < 1:
         raise CliError("--max-rollouts must be at least 1")
     token = args.token or _configured_token()
+    _check_task(args.task)
+    _check_knowledge(args, token)
     options = dict(
         task=args.task,
         method=args.method,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import socket
 from typing import Any
 
 from cpkb.cli import CliError
@@ -102,27 +103,53 @@ def _serve(args: argparse.Namespace) -> int:
     settings = _settings(
         database_url=args.db, host=args.host, port=args.port, log_level=args.log_level
     )
-    # Check the database before importing the web stack (and the surrogates' torch).
-    store = _open_store(settings.database_url)
-    _prepare(store, settings.database_url)
-    store.dispose()
+    # Take the port first, so that a port in use fails before the database is touched; then
+    # check the database before importing the web stack (and the surrogates' torch).
+    listener = _listen(settings.host, settings.port)
+    with listener:
+        store = _open_store(settings.database_url)
+        _prepare(store, settings.database_url)
+        store.dispose()
 
-    import uvicorn
+        import uvicorn
 
-    from server.app import create_app
-    from server.security import SecurityConfigError
+        from server.app import create_app
+        from server.security import SecurityConfigError
 
-    try:
-        app = create_app(settings)
-    except SecurityConfigError as exc:
-        raise CliError(str(exc)) from exc
-    print(
-        f"cpkb: serving {_shown(settings.database_url)} at "
-        f"http://{settings.host}:{settings.port} (API docs at /docs)",
-        flush=True,
-    )
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level=settings.log_level)
+        try:
+            app = create_app(settings)
+        except SecurityConfigError as exc:
+            raise CliError(str(exc)) from exc
+        port = listener.getsockname()[1]
+        print(
+            f"cpkb: serving {_shown(settings.database_url)} at "
+            f"http://{settings.host}:{port} (API docs at /docs)",
+            flush=True,
+        )
+        config = uvicorn.Config(app, log_level=settings.log_level)
+        uvicorn.Server(config).run(sockets=[listener])
     return 0
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    """A listening socket on host:port (as uvicorn would bind it), or a one-line CLI error."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as exc:
+        raise CliError(f"cannot listen on {host}:{port}: {exc.strerror}") from None
+    family, kind, proto, _, address = infos[0]
+    listener = socket.socket(family, kind, proto)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        listener.bind(address)
+        listener.listen(2048)
+    except OSError as exc:
+        listener.close()
+        raise CliError(
+            f"cannot listen on {host}:{port}: {exc.strerror} (is another service running "
+            "there? pick another --port)"
+        ) from None
+    return listener
 
 
 def _db_upgrade(args: argparse.Namespace) -> int:

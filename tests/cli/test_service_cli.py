@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -72,6 +73,20 @@ def test_serve_with_a_bad_database_is_one_line_exit_2(tmp_path: Path) -> None:
         out = cpkb("serve", "--db", url, "--port", str(free_port()), cwd=tmp_path)
         assert out.returncode == 2, out.stderr
         assert out.stderr.startswith("cpkb serve: error: ") and "Traceback" not in out.stderr
+
+
+def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Path) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        db = tmp_path / "kb.sqlite"
+        out = cpkb("serve", "--db", f"sqlite:///{db}", "--port", str(port), cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+    assert f"cannot listen on 127.0.0.1:{port}" in out.stderr and "in use" in out.stderr
+    assert "serving" not in out.stdout
+    assert not db.exists()
 
 
 def test_db_upgrade_defaults_to_cpkb_db_in_the_current_directory(tmp_path: Path) -> None:

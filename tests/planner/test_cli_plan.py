@@ -54,6 +54,48 @@ def test_plan_mistakes_are_one_line_errors(argv, message):
     assert message in out.stderr and "Traceback" not in out.stderr
 
 
+def test_a_misspelled_task_fails_before_any_progress_is_drawn():
+    out = subprocess.run(
+        [sys.executable, "-m", "cpkb", "plan", "--task", "deks", "--method", "quasi-random"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        "cpkb plan: error: deks: no such task (shipped: deskP, desk, regrasp, packP1, packP2, "
+        "packP3, pack; or give a .yaml file)"
+    ]
+
+
+@pytest.mark.parametrize(
+    ("url", "message"),
+    [
+        (
+            "127.0.0.1:8000",
+            "is not an http:// or https:// URL (did you mean http://127.0.0.1:8000?)",
+        ),
+        ("ftp://127.0.0.1:8000", "is not an http:// or https:// URL"),
+        ("http://", "is not an http:// or https:// URL"),
+    ],
+)
+def test_a_kb_url_that_is_not_an_http_url_is_a_usage_error(url, message):
+    out = subprocess.run(
+        [sys.executable, "-m", "cpkb", "plan", "--task", "analytic:desk", "--kb-url", url],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().splitlines() == [f"cpkb plan: error: --kb-url {url!r} {message}"]
+
+
+def test_a_bad_knowledge_base_name_is_a_usage_error(capsys):
+    code = main(["plan", "--task", "analytic:desk", "--kb", "no spaces", "--quiet"])
+    assert code == 2
+    assert "bad knowledge base name 'no spaces'" in capsys.readouterr().err
+
+
 def test_demo_runs_on_the_analytic_worlds(kb_service, capsys):
     code = main(["demo", "--analytic", "--seeds", "1", "--kb-url", kb_service])
     out = capsys.readouterr().out

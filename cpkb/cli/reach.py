@@ -1,0 +1,107 @@
+"""Knowledge-base problems as one-line CLI errors with their own exit status.
+
+`cpkb plan` and `cpkb bench` probe a given service before any work starts (a world loaded, a
+progress bar drawn, workers forked), so a wrong URL or a missing token fails in a second
+rather than after a run's retries, and never as a traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import uuid
+
+from cpkb.cli import CliError
+
+KB_UNAVAILABLE_STATUS = 3
+EXIT_STATUS_HELP = (
+    f"{KB_UNAVAILABLE_STATUS} when the knowledge base cannot be reached or refuses the request "
+    "(wrong URL, no service running, a missing or wrong token, an error answer)"
+)
+
+
+class KnowledgeBaseUnavailable(CliError):
+    """The knowledge base cannot be reached or refused the request."""
+
+    exit_status = KB_UNAVAILABLE_STATUS
+
+
+def checked_url(url: str, option: str = "--kb-url") -> str:
+    """`url` if it is an absolute http(s) URL; else a usage error that says how to write one."""
+    import httpx
+
+    try:
+        parsed = httpx.URL(url)
+    except httpx.InvalidURL as exc:
+        raise CliError(f"{option} {url!r} is not a URL: {exc}") from None
+    if parsed.scheme not in ("http", "https") or not parsed.host:
+        hint = f" (did you mean http://{url}?)" if "://" not in url else ""
+        raise CliError(f"{option} {url!r} is not an http:// or https:// URL{hint}")
+    return url
+
+
+def explained(exc: Exception, url: str, token: str | None) -> CliError:
+    """The one-line CLI error for a failed call to the knowledge base at `url`."""
+    from client import CpkbError, ServiceUnavailable, Unauthorized
+    from cpkb.embedded import EmbeddedServiceError
+
+    if isinstance(exc, EmbeddedServiceError):
+        last = str(exc).strip().splitlines()
+        return KnowledgeBaseUnavailable(
+            f"the embedded knowledge base did not start: {last[-1] if last else exc}"
+        )
+    if isinstance(exc, ServiceUnavailable) and exc.status is None:
+        return KnowledgeBaseUnavailable(
+            f"cannot reach the knowledge base at {url} (start one with `cpkb serve`, "
+            "or leave out --kb-url for an embedded one)"
+        )
+    if isinstance(exc, Unauthorized):
+        remedy = (
+            "check --token or CPKB_TOKEN"
+            if token
+            else "it needs a token: pass --token or set CPKB_TOKEN"
+        )
+        return KnowledgeBaseUnavailable(
+            f"the knowledge base at {url} refused the request ({exc.status}): {remedy}"
+        )
+    if isinstance(exc, CpkbError):
+        reason = " ".join(str(exc).split())
+        return KnowledgeBaseUnavailable(f"the knowledge base at {url} answered {reason}")
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    return KnowledgeBaseUnavailable(f"cannot use the knowledge base at {url}: {reason}")
+
+
+def checked_kb_name(name: str) -> str:
+    """`name` if the service would take it as a knowledge base's name; else a usage error."""
+    from pydantic import ValidationError
+
+    from client.models import KnowledgeBaseIn
+
+    try:
+        KnowledgeBaseIn(name=name)
+    except ValidationError as exc:
+        raise CliError(f"bad knowledge base name {name!r}: {exc.errors()[0]['msg']}") from None
+    return name
+
+
+def probe(url: str, token: str | None, kb: str | None = None) -> None:
+    """Check that the service at `url` answers and takes this token for writes.
+
+    With `kb`, creates that knowledge base if it is missing (what a planner run does first);
+    without, deletes a knowledge base that cannot exist, which touches nothing yet needs the
+    write permission a run will need.
+    """
+    from client import CpkbClient, CpkbError, NotFound
+
+    checked_url(url)
+    if kb is not None:
+        checked_kb_name(kb)
+    try:
+        with CpkbClient(url, token=token, retries=1, backoff=0.1, reconnect_for=0.0) as client:
+            client.health()
+            if kb is not None:
+                client.create_kb(kb, exist_ok=True)
+                return
+            with contextlib.suppress(NotFound):
+                client.delete_kb(f"cpkb-probe-{uuid.uuid4().hex}")
+    except CpkbError as exc:
+        raise explained(exc, url, token) from None
