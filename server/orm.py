@@ -110,4 +110,6 @@ class PointRow(Base):
     time: Mapped[datetime | None] = mapped_column(UtcDateTime)
     extra: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     key: Mapped[str | None] = mapped_column(String(200))
+    # SHA-256 of the keyed point's content: the same key with another point is a conflict.
+    payload_hash: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)

@@ -8,6 +8,7 @@ even one racing in from another process, stores nothing and gets the original an
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -21,7 +22,7 @@ from sqlalchemy.orm import Session
 
 from client.models import MAX_SOURCE_DEPTH, PointIn, PointOut, PointResult, PointsPage
 from server.db import Store
-from server.errors import InvalidInput
+from server.errors import Conflict, InvalidInput
 from server.graphs import GraphError, ResolvedGraph, check_x
 from server.orm import PointRow, TypeRow, utcnow
 from server.services.kbs import kb_id
@@ -83,8 +84,27 @@ def _prepare(points: list[PointIn]) -> tuple[list[ResolvedGraph], list[dict[str,
         except GraphError as exc:
             raise InvalidInput(f"{where}.{exc}") from exc
         resolved.append(graph)
-        rows.append(_row(point, where))
+        row = _row(point, where)
+        row["payload_hash"] = _payload_hash(graph.type_id, row) if point.key else None
+        rows.append(row)
     return resolved, rows
+
+
+def _payload_hash(type_id: str, row: dict[str, Any]) -> str:
+    """What an idempotency key stands for: the point's type, value, label and provenance."""
+    content = {name: row[name] for name in ("x", "feasible", *PROVENANCE, "extra")}
+    text = json.dumps([type_id, content], sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _check_same_payload(key: str, stored: str | None, posted: str | None) -> None:
+    """A key names one request: a different point under it is refused. Points stored before
+    the hash was kept (None) replay for any payload."""
+    if stored is not None and stored != posted:
+        raise Conflict(
+            f"idempotency key {key!a} was already used for a different point: "
+            "send a new key for a new point"
+        )
 
 
 _TYPES = TypeRow.__table__
@@ -164,7 +184,8 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
         keyed: dict[str, dict[str, Any]] = {}
         for row in rows:
             if row["key"] is not None:
-                keyed.setdefault(row["key"], row)
+                first = keyed.setdefault(row["key"], row)
+                _check_same_payload(row["key"], first["payload_hash"], row["payload_hash"])
         keyless = [row for row in rows if row["key"] is None]
 
         inserted: list[dict[str, Any]] = []
@@ -184,7 +205,10 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
                 keyed[key]["id"] = point_id
                 inserted.append(keyed[key])
             repeated = [k for k, row in keyed.items() if "id" not in row]
-            by_key = _stored_results(session, kb_pk, repeated)
+            by_key = {}
+            for key, (result, stored_hash) in _stored_results(session, kb_pk, repeated).items():
+                _check_same_payload(key, stored_hash, keyed[key]["payload_hash"])
+                by_key[key] = result
 
         _count(session, inserted, now)
         type_ids = {pk: type_id for type_id, (pk, _) in types.items()}
@@ -205,17 +229,23 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
     return PostOutcome(results, touched, n_new=len(inserted), n_new_types=n_new_types)
 
 
-def _stored_results(session: Session, kb_pk: int, keys: list[str]) -> dict[str, PointResult]:
-    out: dict[str, PointResult] = {}
+def _stored_results(
+    session: Session, kb_pk: int, keys: list[str]
+) -> dict[str, tuple[PointResult, str | None]]:
+    """The first answer of each stored key, with the payload hash stored under it."""
+    out: dict[str, tuple[PointResult, str | None]] = {}
     for start in range(0, len(keys), 500):
         chunk = keys[start : start + 500]
         rows = session.execute(
-            select(PointRow.key, PointRow.id, PointRow.new_type, TypeRow.type_id)
+            select(
+                PointRow.key, PointRow.id, PointRow.new_type, TypeRow.type_id, PointRow.payload_hash
+            )
             .join(TypeRow, TypeRow.id == PointRow.type_pk)
             .where(PointRow.kb_id == kb_pk, PointRow.key.in_(chunk))
         )
-        for key, point_id, new_type, type_id in rows:
-            out[key] = PointResult(type_id=type_id, point_id=point_id, new_type=new_type)
+        for key, point_id, new_type, type_id, payload_hash in rows:
+            result = PointResult(type_id=type_id, point_id=point_id, new_type=new_type)
+            out[key] = (result, payload_hash)
     return out
 
 

@@ -13,6 +13,8 @@ from migrations import VERSION_TABLE, current_revision, downgrade, upgrade
 from server.db import make_engine
 from server.orm import Base
 
+HEAD = "0002"
+
 
 def test_empty_database_to_head_and_no_autogenerate_diff(db_url: str) -> None:
     engine = make_engine(db_url)
@@ -20,7 +22,7 @@ def test_empty_database_to_head_and_no_autogenerate_diff(db_url: str) -> None:
         assert current_revision(engine) is None
         upgrade(engine)
         upgrade(engine)  # idempotent
-        assert current_revision(engine) == "0001"
+        assert current_revision(engine) == HEAD
         tables = set(inspect(engine).get_table_names())
         assert {"knowledge_bases", "cp_types", "cp_points", VERSION_TABLE} <= tables
         assert "alembic_version" not in tables
@@ -40,7 +42,7 @@ def test_downgrade_to_base_and_back(db_url: str) -> None:
         downgrade(engine, "base")
         assert set(inspect(engine).get_table_names()) <= {VERSION_TABLE}
         upgrade(engine)
-        assert current_revision(engine) == "0001"
+        assert current_revision(engine) == HEAD
     finally:
         engine.dispose()
 
@@ -54,4 +56,4 @@ def test_cpkb_db_upgrade_from_an_installed_package(sqlite_url: str, tmp_path: ob
         timeout=300,
     )
     assert out.returncode == 0, out.stderr
-    assert "schema at revision 0001" in out.stdout
+    assert f"schema at revision {HEAD}" in out.stdout
