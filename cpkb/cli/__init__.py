@@ -16,6 +16,7 @@ COMMAND_MODULES = (
     "cpkb.cli.world",
     "cpkb.cli.planning",
     "cpkb.cli.bench",
+    "cpkb.cli.generate",
 )
 
 
