@@ -69,10 +69,12 @@ def test_points_create_a_type_once_and_count(core_client: Any) -> None:
 def test_a_repeated_key_stores_nothing_and_replays_the_first_answer(core_client: Any) -> None:
     point = make_point(3, key="rollout-7-check-2")
     first = post(core_client, [point]).json()["results"][0]
-    again = post(core_client, [point, make_point(4, key="rollout-7-check-2")]).json()["results"]
+    again = post(core_client, [point, point]).json()["results"]
     assert again == [first, first]
     assert first["new_type"] is True
     assert n_points(core_client) == 1
+    # The key names that point: another one under it is refused (tests/server/test_idempotency).
+    assert post(core_client, [make_point(4, key="rollout-7-check-2")]).status_code == 409
 
 
 def test_points_without_key_are_each_stored(core_client: Any) -> None:
