@@ -14,7 +14,7 @@ from server.db import Store
 from server.errors import install_error_handlers
 from server.hooks import ServiceHooks
 from server.schema import prepare_database
-from server.security import authorize, install_security
+from server.security import bearer_scheme, install_security
 from server.settings import Settings
 
 
@@ -44,7 +44,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         summary="Constraint-primitive knowledge base for task and motion planning",
         lifespan=lifespan,
-        dependencies=[Depends(authorize)],
+        dependencies=[Depends(bearer_scheme)],
     )
     app.state.settings = settings
     app.state.store = store

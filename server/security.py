@@ -11,8 +11,8 @@ Browsers cannot send a bearer header when they open a page, so the dashboard's r
 `CPKB_AUTH_READS` guards them) accept the token from an HttpOnly, SameSite=Strict cookie set by
 `/login`; writes never accept the cookie, so a cross-site form cannot write with it.
 
-Wiring (two lines in the app factory):
-    app = FastAPI(..., dependencies=[Depends(authorize)])
+Wiring (two lines in the app factory; the dependency only documents the header):
+    app = FastAPI(..., dependencies=[Depends(bearer_scheme)])
     install_security(app, settings)
 """
 
@@ -26,11 +26,12 @@ from pathlib import Path
 from typing import Annotated, Protocol
 from urllib.parse import parse_qs, quote
 
-from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, FastAPI, Query, Request, Response, status
 from fastapi.middleware.cors import CORSMiddleware
-from fastapi.responses import HTMLResponse, RedirectResponse
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
+from fastapi.security import HTTPBearer
 from pydantic import SecretStr
+from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
@@ -125,43 +126,71 @@ def is_write(method: str, route_path: str) -> bool:
     return not (method == "POST" and route_path.endswith(READ_ONLY_POST_SUFFIXES))
 
 
-_bearer = HTTPBearer(
+bearer_scheme = HTTPBearer(
     auto_error=False,
     description="Needed for writes and deletes when the server has a token (CPKB_TOKEN).",
 )
+"""Declares the bearer header in the API docs; `AccessGate` checks it."""
+
+NEEDS_TOKEN = (
+    "this server needs a token: send 'Authorization: Bearer <token>' "
+    "(client: token=..., CLI: --token or CPKB_TOKEN; browser: /login)"
+)
 
 
-async def authorize(
-    request: Request,
-    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
-) -> None:
-    """App-wide dependency: 401 when this route needs a token and none valid was sent."""
-    policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
-    route = request.scope.get("route")
-    route_path = getattr(route, "path", request.url.path)
+def _route_path(scope: Scope) -> str:
+    """The template of the route `scope` goes to (`/v1/kbs/{kb}/points`), else its path."""
+    for route in getattr(scope.get("app"), "routes", ()):
+        match, _ = route.matches(scope)
+        if match is Match.FULL:
+            return getattr(route, "path", scope["path"])
+    return scope["path"]
+
+
+def _bearer_token(request: Request) -> str | None:
+    scheme, _, token = request.headers.get("authorization", "").partition(" ")
+    return token.strip() or None if scheme.lower() == "bearer" else None
+
+
+def refusal(policy: AccessPolicy, request: Request, route_path: str) -> Response | None:
+    """The answer to a request this route needs a token for and that has none valid: 401, or
+    for a browser opening a page, a redirect to /login. None when the request may pass."""
     if not policy.needs_token(request.method, route_path):
-        return
-    presented = credentials.credentials if credentials is not None else None
+        return None
+    presented = _bearer_token(request)
     if presented is None and not is_write(request.method, route_path):
         presented = request.cookies.get(COOKIE)
     if presented is None:
         if request.method == "GET" and "text/html" in request.headers.get("accept", ""):
             target = quote(request.url.path, safe="/")
-            raise HTTPException(
-                status.HTTP_303_SEE_OTHER, headers={"Location": f"/login?next={target}"}
-            )
-        raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED,
-            detail="this server needs a token: send 'Authorization: Bearer <token>' "
-            "(client: token=..., CLI: --token or CPKB_TOKEN; browser: /login)",
-            headers={"WWW-Authenticate": "Bearer"},
+            return RedirectResponse(f"/login?next={target}", status.HTTP_303_SEE_OTHER)
+        return JSONResponse(
+            {"detail": NEEDS_TOKEN}, status.HTTP_401_UNAUTHORIZED, {"WWW-Authenticate": "Bearer"}
         )
     if not policy.accepts(presented):
-        raise HTTPException(
+        return JSONResponse(
+            {"detail": "invalid token"},
             status.HTTP_401_UNAUTHORIZED,
-            detail="invalid token",
-            headers={"WWW-Authenticate": 'Bearer error="invalid_token"'},
+            {"WWW-Authenticate": 'Bearer error="invalid_token"'},
         )
+    return None
+
+
+class AccessGate:
+    """ASGI middleware: a request without the token its route needs is answered before
+    anything reads its body, so unauthenticated uploads cost the server no memory."""
+
+    def __init__(self, app: ASGIApp, policy: AccessPolicy) -> None:
+        self.app = app
+        self.policy = policy
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and self.policy.enabled:
+            answer = refusal(self.policy, Request(scope), _route_path(scope))
+            if answer is not None:
+                await answer(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
 
 
 login_router = APIRouter(include_in_schema=False)
@@ -279,11 +308,12 @@ def _replay(messages: list[Message], then: Receive | None = None) -> Receive:
 
 
 def install_security(app: FastAPI, settings: AccessSettings) -> None:
-    """Attach the access policy, the browser login, the body-size limit and (only when
-    configured) CORS."""
+    """Attach the access policy, the browser login, the body-size limit, the access gate
+    outside it and (only when configured) CORS outside both."""
     app.state.access_policy = AccessPolicy.from_settings(settings)
     app.include_router(login_router)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(AccessGate, policy=app.state.access_policy)
     if settings.cors_origins:
         app.add_middleware(
             CORSMiddleware,

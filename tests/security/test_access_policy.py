@@ -10,7 +10,7 @@ from fastapi import Depends, FastAPI
 from fastapi.testclient import TestClient
 
 from server import security
-from server.security import AccessPolicy, SecurityConfigError, authorize, install_security
+from server.security import AccessPolicy, SecurityConfigError, bearer_scheme, install_security
 from server.settings import Settings
 
 
@@ -77,7 +77,7 @@ def test_routes_are_writes_unless_known_reads(method: str, path: str, write: boo
 
 
 def make_app(**settings: object) -> FastAPI:
-    app = FastAPI(dependencies=[Depends(authorize)])
+    app = FastAPI(dependencies=[Depends(bearer_scheme)])
 
     @app.get("/healthz")
     def health() -> dict:
