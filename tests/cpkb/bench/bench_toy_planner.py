@@ -2,7 +2,8 @@
 
 It binds one variable x in [0, 1] whose feasible set is [0.9, 1]: each rollout draws x
 (uniformly for `quasi-random`; from [0.5, 1] for the other methods, so they need fewer
-rollouts, as a guided sampler would). Every call is logged to `log_path` (one JSON line), so
+rollouts, as a guided sampler would), after sleeping `sleep_s` (only on `sleep_seeds` if
+given). Every call is logged to `log_path` (one JSON line), so
 tests can see which runs were executed, in which order, with which arguments.
 """
 
@@ -12,6 +13,7 @@ import json
 import os
 import time
 import zlib
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +30,7 @@ def toy_run(
     quiet: bool,
     log_path: str,
     sleep_s: float = 0.0,
+    sleep_seeds: Iterable[int] | None = None,
     fail_seeds: tuple[int, ...] = (),
     stop_at_first: bool = True,
 ) -> dict[str, object]:
@@ -46,7 +49,8 @@ def toy_run(
         handle.write(json.dumps(call) + "\n")
     if seed in fail_seeds:
         raise RuntimeError(f"toy failure on seed {seed}")
-    time.sleep(sleep_s)
+    if sleep_seeds is None or seed in sleep_seeds:
+        time.sleep(sleep_s)
     rng = np.random.default_rng([seed, zlib.crc32(f"{task}/{method}".encode())])
     low = 0.0 if method == "quasi-random" else 0.5
     rollouts, solved = 0, False

@@ -6,10 +6,10 @@ import json
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from wait_support import PATIENCE_S, wait_until
 
 from cpkb.cli import main
 
@@ -103,20 +103,24 @@ def test_a_terminated_bench_stops_its_embedded_service(tmp_path: Path) -> None:
     ]  # fmt: skip
     bench = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 180
-        while not (out / "runs.jsonl").is_file() or not (out / "runs.jsonl").read_text():
-            assert bench.poll() is None and time.monotonic() < deadline, bench.stderr.read()
-            time.sleep(0.2)
+
+        def first_run_recorded() -> bool:
+            assert bench.poll() is None, bench.stderr.read()
+            runs = out / "runs.jsonl"
+            return runs.is_file() and bool(runs.read_text())
+
+        wait_until(first_run_recorded, timeout=2 * PATIENCE_S, interval=0.2, what="a first run")
         children = _children(bench.pid)
         assert len(children) >= 2  # the service and the pool's worker
         bench.send_signal(signal.SIGTERM)
-        stdout, _ = bench.communicate(timeout=60)
+        stdout, _ = bench.communicate(timeout=PATIENCE_S)
         assert bench.returncode == 1  # runs are left: a rerun continues
         assert "(interrupted: rerun the same command to continue)" in stdout
     finally:
         if bench.poll() is None:
             bench.kill()
-    deadline = time.monotonic() + 30
-    while any(_alive(pid) for pid in children) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not any(_alive(pid) for pid in children)
+    wait_until(
+        lambda: not any(_alive(pid) for pid in children),
+        interval=0.2,
+        what="the bench's service and workers stopping",
+    )
