@@ -9,10 +9,10 @@ same seeds.
 from __future__ import annotations
 
 import statistics
-import time
 import uuid
 
 import pytest
+from wait_support import wait_until
 
 from client import CpkbClient
 from planner.run import run_plan
@@ -20,14 +20,12 @@ from planner.run import run_plan
 SEEDS = range(10)
 
 
-def wait_for_fits(client: CpkbClient, kb: str, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+def wait_for_fits(client: CpkbClient, kb: str) -> None:
+    def fitted() -> bool:
         states = [client.get_type(kb, t.type_id).surrogate for t in client.list_types(kb)]
-        if all(s is not None and s.status in ("ready", "prior") for s in states):
-            return
-        time.sleep(0.2)
-    pytest.fail(f"the surrogates of {kb} were not fitted within {timeout} s")
+        return all(s is not None and s.status in ("ready", "prior") for s in states)
+
+    wait_until(fitted, interval=0.2, what=f"the fits of the surrogates of {kb}")
 
 
 def stocked_desk_session(client: CpkbClient, kb: str):
