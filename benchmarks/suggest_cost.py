@@ -70,7 +70,7 @@ def record_run(url: str, task: str, seed: int) -> list[SuggestIn]:
 
 
 def replay(db_url: str, requests: list[SuggestIn]) -> list[dict[str, Any]]:
-    engine = SurrogateEngine(Store.from_url(db_url), EngineConfig(fit_in_process=False))
+    engine = SurrogateEngine(Store.from_url(db_url), EngineConfig(fit_in_child_process=False))
     for request in requests:
         for constraint in request.constraints:
             engine.model("bench", constraint.type_id)
@@ -80,7 +80,7 @@ def replay(db_url: str, requests: list[SuggestIn]) -> list[dict[str, Any]]:
     try:
         for n_gen in GENERATIONS:
             optimizer = OptimizerConfig(n_gen=n_gen, margin=0.1, margin_abs=0.025)
-            engine.config = EngineConfig(fit_in_process=False, optimizer=optimizer)
+            engine.config = EngineConfig(fit_in_child_process=False, optimizer=optimizer)
             seconds, values = [], []
             for _ in range(REPEATS):
                 for request in requests:

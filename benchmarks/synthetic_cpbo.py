@@ -26,6 +26,7 @@ import numpy as np
 
 from client.models import CategoricalDomain, ContinuousDomain
 from surrogate.acquisition import MPF, ConstraintTerm
+from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_label_regression, warm_up
 from surrogate.optimize import OptimizerConfig, maximize, space_filling
@@ -40,7 +41,7 @@ APPROACH = {
 }
 DIR = CategoricalDomain(choices=DIRS, embedding=APPROACH)
 POSE = ContinuousDomain(low=[0.0, 0.0, -math.pi], high=[1.0, 1.0, math.pi])
-SPACE = {"#dir": DIR, "#pose": POSE}
+SPACE = space_from_json({"#dir": DIR.model_dump(), "#pose": POSE.model_dump()})
 BIND = {"#dir": "#dir", "#pose": "#pose"}
 
 

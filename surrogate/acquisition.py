@@ -3,21 +3,53 @@
 An acquisition is a callable `columns -> scores (n,)` (see `surrogate.encoding` for columns), to be
 maximised by `surrogate.optimize.maximize`. Fixed variables are bound when the acquisition is built,
 so the optimiser only ever sees the variables it chooses.
+
+Like BoTorch's `X_pending`, the points served but not answered yet belong to the acquisition
+(`PendingPoints`): it is lowered around them, so that planners asking at the same moment for the
+same space do not all get one point. The optimiser measures how far a candidate is from them
+(it does so for its own spread anyway) and maximises what the acquisition makes of that.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-from surrogate.encoding import Columns, Domain, EncodingError, SpaceEncoder, Value, value_column
+from surrogate.domains import Domain, Value
+from surrogate.encoding import Columns, EncodingError, SpaceEncoder, value_column
 from surrogate.models import FeasibilityPredictor, RegressionPredictor
 
 
+@dataclass(frozen=True)
+class PendingPoints:
+    """Points served but not answered yet (search variables; a point may give only some) and
+    the penalty around them: `penalty` at a pending point, a Gaussian of `radius` (in
+    normalised distance) around it."""
+
+    points: Sequence[Mapping[str, Value]] = ()
+    penalty: float = 0.3
+    radius: float = 0.1
+
+    def penalty_at(self, distances: np.ndarray) -> np.ndarray:
+        """`(n,)` the score removed from candidates at `(n, k)` normalised distances to the
+        pending points (the nearest one counts)."""
+        if distances.shape[1] == 0:
+            return np.zeros(len(distances))
+        return self.penalty * np.exp(-0.5 * (distances / self.radius) ** 2).max(axis=1)
+
+
+NO_PENDING = PendingPoints()
+
+
 class Acquisition(Protocol):
+    """Scores of candidate columns, and the pending points the optimiser keeps away from."""
+
+    @property
+    def pending(self) -> PendingPoints: ...
+
     def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray: ...
 
 
@@ -72,6 +104,7 @@ class MPF:
     """Minimum probability of feasibility: alpha(x) = min_i P(CP_i feasible | x)."""
 
     terms: Sequence[ConstraintTerm]
+    pending: PendingPoints = field(default=NO_PENDING)
 
     def per_term(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
         """`(k, n)` P(feasible) of each term."""
@@ -79,6 +112,17 @@ class MPF:
 
     def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
         return self.per_term(cols).min(axis=0)
+
+
+@dataclass(frozen=True)
+class Scored:
+    """Any score of candidate columns as an acquisition (with no pending points unless given)."""
+
+    score: Callable[[Mapping[str, np.ndarray]], np.ndarray]
+    pending: PendingPoints = field(default=NO_PENDING)
+
+    def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        return self.score(cols)
 
 
 @dataclass(frozen=True)
@@ -90,6 +134,7 @@ class UCB:
     encoder: SpaceEncoder
     beta: float
     fixed_cols: Columns
+    pending: PendingPoints = field(default=NO_PENDING)
 
     @classmethod
     def build(

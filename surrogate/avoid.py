@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from client.models import CategoricalDomain
-from surrogate.encoding import Columns, Domain, EncodingError, SpaceEncoder, Value
+from surrogate.domains import CategoricalDomain, Domain, Value
+from surrogate.encoding import Columns, EncodingError, SpaceEncoder
 
 
 @dataclass(frozen=True)

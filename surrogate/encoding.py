@@ -30,11 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain
+from surrogate.domains import CategoricalDomain, ContinuousDomain, Domain, Value
 
-Domain = CategoricalDomain | ContinuousDomain
 Columns = dict[str, np.ndarray]
-Value = str | list[float]
 
 
 class EncodingError(ValueError):

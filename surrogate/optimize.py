@@ -9,8 +9,9 @@ Like BoTorch's `optimize_acqf`, the search starts from raw samples (a Latin hype
 one vectorised call) and NSGA-II refines the best of them for a few generations (pymoo's SBX and
 polynomial mutation, driven on arrays; see `_nsga2`), each point scored once. The score NSGA-II
 maximises is the acquisition plus a small exploration bonus (distance to the nearest excluded or
-pending point) minus a penalty around pending points, so that concurrent planners are pushed apart.
-An excluded point is never returned.
+pending point) minus the acquisition's penalty around its pending points
+(`surrogate.acquisition.PendingPoints`), so that concurrent planners are pushed apart. An excluded
+point is never returned.
 
 With `margin > 0` the answer is not the argmax itself but the candidate farthest from the excluded
 and pending points among those within `margin` (a fraction) of the best acquisition value: for
@@ -33,10 +34,10 @@ from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
 from scipy.stats import qmc
 
-from client.models import CategoricalDomain
 from surrogate.acquisition import Acquisition
 from surrogate.avoid import AvoidSet
-from surrogate.encoding import Columns, Domain, Value, value_column
+from surrogate.domains import CategoricalDomain, Domain, Value
+from surrogate.encoding import Columns, value_column
 
 
 class SpaceExhausted(ValueError):
@@ -57,8 +58,6 @@ class OptimizerConfig:
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
     explore: float = 0.02  # bonus per unit of normalised distance to excluded/pending points
-    penalty: float = 0.3  # score removed at a pending point (excluded ones are removed exactly)
-    radius: float = 0.1  # penalty reach, in normalised distance
     enumerate_limit: int = 2048
     eliminate_duplicates: bool = True
 
@@ -134,7 +133,8 @@ class _MixedPM(PM):
 
 
 class _Scorer:
-    """Acquisition + exploration bonus - penalty near pending points, on genes."""
+    """Acquisition + exploration bonus - the acquisition's penalty near its pending points, on
+    genes."""
 
     def __init__(
         self,
@@ -187,12 +187,10 @@ class _Scorer:
         if avoid.empty:
             return raw, np.zeros(len(raw))
         z = avoid.encoder.encode(cols)
-        cfg = self.config
         spread = avoid.spread(z)
-        score = raw + cfg.explore * np.minimum(spread, 1.0)
+        score = raw + self.config.explore * np.minimum(spread, 1.0)
         if avoid.has_pending:
-            near = np.exp(-0.5 * (avoid.pending_distances(z) / cfg.radius) ** 2)
-            score = score - cfg.penalty * near.max(axis=1)
+            score = score - self.acquisition.pending.penalty_at(avoid.pending_distances(z))
         return score, spread
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
@@ -217,22 +215,15 @@ def maximize(
     *,
     fixed: Mapping[str, Value] | None = None,
     exclude: Sequence[Mapping[str, Value]] = (),
-    pending: Sequence[Mapping[str, Value]] = (),
     seed: int = 0,
     config: OptimizerConfig | None = None,
 ) -> Suggestion:
     """The point of `space` (minus `fixed` variables) that maximises `acquisition`, never one in
-    `exclude`; `pending` points (served, not yet answered) are avoided softly. Deterministic for a
-    given seed. Raises EncodingError (naming the field) on bad values, SpaceExhausted when a finite
+    `exclude`; the acquisition's pending points are avoided softly. Deterministic for a given
+    seed. Raises EncodingError (naming the field) on bad values, SpaceExhausted when a finite
     space is wholly excluded."""
     found = maximize_batch(
-        acquisition,
-        space,
-        fixed=fixed,
-        exclude=exclude,
-        pending=pending,
-        seed=seed,
-        config=config,
+        acquisition, space, fixed=fixed, exclude=exclude, seed=seed, config=config
     )
     return found[0]
 
@@ -243,7 +234,6 @@ def maximize_batch(
     *,
     fixed: Mapping[str, Value] | None = None,
     exclude: Sequence[Mapping[str, Value]] = (),
-    pending: Sequence[Mapping[str, Value]] = (),
     seed: int = 0,
     config: OptimizerConfig | None = None,
     n: int = 1,
@@ -261,7 +251,7 @@ def maximize_batch(
         value = float(np.asarray(acquisition(fixed_cols))[0])
         return [Suggestion(dict(fixed_in_space), value)]
     genome = _Genome(free)
-    avoid = AvoidSet(free, fixed_in_space, exclude, pending)
+    avoid = AvoidSet(free, fixed_in_space, exclude, acquisition.pending.points)
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes = _candidates(genome, free, scorer, config, seed)

@@ -4,16 +4,19 @@ Every predictor the service answers with is a small tree of frozen numpy datacla
 the stated prior, and the `RecentPoints` / `UnseenChoices` wrappers around them). `dump` turns one
 into plain JSON (arrays as base64 little-endian float64 with their shape, so that a 128 x 128
 variational term costs 175 kB rather than a list of 16,384 decimals), `load` rebuilds it exactly:
-a loaded predictor answers the same P(feasible) to the last bit.
+a loaded predictor answers the same P(feasible) to the last bit. `model_to_json` and
+`model_from_json` carry a whole `TypeModel` (the wire contract's `ModelSnapshot`).
 """
 
 from __future__ import annotations
 
 import base64
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from surrogate.domains import space_from_json, space_to_json
 from surrogate.models import (
     FeasibilityPredictor,
     LabelRegressionPredictor,
@@ -23,6 +26,7 @@ from surrogate.models import (
     UnseenChoices,
     VGPPredictor,
 )
+from surrogate.suggest import TypeModel
 
 Snapshot = dict[str, Any]
 
@@ -152,3 +156,33 @@ def load(snapshot: Any, where: str = "predictor") -> FeasibilityPredictor:
     except (KeyError, TypeError) as exc:
         raise SnapshotError(f"{where}: {kind} snapshot lacks {exc}") from exc
     raise SnapshotError(f"{where}: unknown predictor kind {kind!r}")
+
+
+def model_to_json(type_id: str, model: TypeModel) -> dict[str, Any]:
+    """A type's model in the wire contract's `ModelSnapshot` form."""
+    return {
+        "type_id": type_id,
+        "version": model.version,
+        "space": space_to_json(model.space),
+        "n_points": model.n_points,
+        "n_fitted": model.n_fitted,
+        "predictor": dump(model.predictor),
+    }
+
+
+def model_from_json(obj: Mapping[str, Any]) -> tuple[str, TypeModel]:
+    """The type ID and model `model_to_json` wrote; SnapshotError naming the part that is wrong."""
+    try:
+        space = space_from_json(obj["space"])
+        model = TypeModel(
+            space,
+            load(obj["predictor"]),
+            str(obj["version"]),
+            int(obj["n_fitted"]),
+            int(obj["n_points"]),
+        )
+        return str(obj["type_id"]), model
+    except SnapshotError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:  # DomainError is a ValueError
+        raise SnapshotError(f"model snapshot: {exc}") from exc

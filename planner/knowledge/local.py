@@ -4,8 +4,10 @@ A rollout costs 10-20 ms of simulation; a suggestion from the service cost 40-60
 waiting for a CPU that three planners and the fit worker share. The models themselves are small
 (a variational GP is its inducing points and two cached terms), so the planner fetches each
 type's current predictor (`POST /v1/kbs/{kb}/models`) and maximises MPF itself, with the same
-code (`surrogate.suggest`) and optimiser settings as the service. Between fetches the points
-this planner posted weigh in at once (`RecentPoints`), as they would in the service; a model is
+code (`surrogate.suggest.suggest`) and optimiser settings as the service: this module keeps only
+the refresh policy, serves the snapshots as a `ModelSource`, and reads the wire models into the
+surrogate library's types at its edge. Between fetches the points this planner posted weigh in
+at once (`RecentPoints`), as they would in the service; a model is
 fetched anew once its type has new points and `REFRESH_ROLLOUTS` rollouts have passed, and only
 if its version changed. Such a refresh runs in the background: the fetch costs 5-80 ms on a busy
 machine (the service encodes every changed fit), and the model in hand, with this planner's own
@@ -30,20 +32,43 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from client.models import ModelsOut, SuggestIn, SuggestOut, Value
+from client import models as wire
+from client.models import ModelsOut, SuggestIn, SuggestOut
 from surrogate import snapshot
-from surrogate.acquisition import ConstraintTerm
-from surrogate.encoding import Domain, SpaceEncoder
+from surrogate.domains import Domain, Value, space_from_json
+from surrogate.encoding import SpaceEncoder
 from surrogate.models import FeasibilityPredictor, PriorPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
-from surrogate.suggest import mpf_points, served
+from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
+from surrogate.suggest import suggest as suggest_point
 
 REFRESH_ROLLOUTS = 3
 """Rollouts between two fetches of one type's model (a fit takes longer than a few rollouts)."""
 
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
+
+
+def fetch_from(
+    source: ModelSource,
+    optimizer: OptimizerConfig,
+    pending_ttl_s: float = 30.0,
+) -> FetchFn:
+    """A fetch answered in this process from `source` (e.g. `surrogate.sources.InMemoryModels`)
+    through the same snapshot form the service sends: the planner's models without a server."""
+
+    def fetch(type_ids: list[str], known: dict[str, str]) -> ModelsOut:
+        shots = []
+        for type_id in dict.fromkeys(type_ids):
+            model = source.model(type_id)
+            if known.get(type_id) != model.version:
+                shots.append(wire.ModelSnapshot(**snapshot.model_to_json(type_id, model)))
+        return ModelsOut(
+            models=shots, optimizer=dataclasses.asdict(optimizer), pending_ttl_s=pending_ttl_s
+        )
+
+    return fetch
 
 
 @dataclass
@@ -110,7 +135,12 @@ class LocalSurrogates:
         )
         self._in_flight: _Fetch | None = None
 
-    def adopt(self, type_id: str, space: Mapping[str, Domain], stored_with: int) -> bool:
+    def adopt(
+        self,
+        type_id: str,
+        space: Mapping[str, wire.CategoricalDomain | wire.ContinuousDomain],
+        stored_with: int,
+    ) -> bool:
         """Take up a type this planner is creating (its first point goes out in poster batch
         `stored_with`), if the service's optimiser settings are known (from an earlier fetch):
         it guides at once from this planner's own points, without waiting for that batch to be
@@ -120,9 +150,10 @@ class LocalSurrogates:
         if not self._settings_known:
             return False
         if type_id not in self._models:
-            none = np.zeros((0, SpaceEncoder(space).dim))
+            own_space = space_from_json({label: d.model_dump() for label, d in space.items()})
+            none = np.zeros((0, SpaceEncoder(own_space).dim))
             self._models[type_id] = _Model(
-                dict(space),
+                own_space,
                 PriorPredictor(none, none),
                 version="",
                 n_fitted=0,
@@ -149,29 +180,23 @@ class LocalSurrogates:
         stale = [t for t in type_ids if self._stale(t, rollout, stored)]
         if stale:
             self._refresh(stale, rollout, stored)
-        terms = [
-            ConstraintTerm.build(
-                c.type_id,
-                self._models[c.type_id].predictor(),
-                self._models[c.type_id].space,
-                c.bind,
-                request.fixed,
-            )
-            for c in request.constraints
-        ]
-        pending = self._pending.for_request(PENDING_KEY, frozenset(type_ids))
-        points = mpf_points(
-            terms, request, pending=pending, seed=request.seed or 0, config=self._config
-        )
-        return served(
-            request,
-            points,
+        answer = suggest_point(
+            self,
+            SuggestRequest.from_json(request.model_dump()),
             self._pending,
-            PENDING_KEY,
-            method="mpf-local",
-            n_fitted={t: self._models[t].n_fitted for t in type_ids},
-            n_pending=len(pending),
+            key=PENDING_KEY,
+            config=self._config,
         )
+        out = answer.to_json()
+        out["method"] = f"{answer.method}-local"
+        return SuggestOut.model_validate(out)
+
+    def model(self, type_id: str) -> TypeModel:
+        """The model in hand (`surrogate.suggest.ModelSource`): the last snapshot, with this
+        planner's points since weighed in."""
+        held = self._models[type_id]
+        n_points = held.n_fitted + len(held.own)
+        return TypeModel(held.space, held.predictor(), held.version, held.n_fitted, n_points)
 
     def close(self) -> None:
         """Stop the background refresh (one under way is waited for, not applied)."""
@@ -229,13 +254,14 @@ class LocalSurrogates:
         self._settings_known = True
         self._pending.ttl_s = answer.pending_ttl_s
         for shot in answer.models:
-            previous = self._models.get(shot.type_id)
+            type_id, model = snapshot.model_from_json(shot.model_dump())
+            previous = self._models.get(type_id)
             own = [p for p in previous.own if p[0] > stored] if previous is not None else []
-            self._models[shot.type_id] = _Model(
-                space=dict(shot.space),
-                fitted=snapshot.load(shot.predictor),
-                version=shot.version,
-                n_fitted=shot.n_fitted,
+            self._models[type_id] = _Model(
+                space=dict(model.space),
+                fitted=model.predictor,
+                version=model.version,
+                n_fitted=model.n_fitted,
                 fetched_at=rollout,
                 own=own,
             )

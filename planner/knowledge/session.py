@@ -365,10 +365,9 @@ class KnowledgeSession:
         try:
             answer = local.suggest(request, self._rollout, self.poster.done)
         except Exception as exc:
-            # The service answers from here on: it says what was wrong with a request, and a
-            # service without snapshots (an older version) is not asked again.
+            # The service answers this one call (it says what was wrong with a request); the
+            # next one is tried here again, so a passing network error changes nothing for good.
             self.stats.event(f"local suggestion failed, the service answers instead: {exc}")
-            self.local = None
             return None
         finally:
             self.stats.model_fetches += local.fetches - fetches

@@ -18,7 +18,7 @@ def install(app: FastAPI) -> None:
     if not settings.surrogate_enabled:
         return
     config = EngineConfig(
-        fit_in_process=settings.surrogate_fit_process,
+        fit_in_child_process=settings.surrogate_fit_process,
         max_inducing=settings.surrogate_max_inducing,
         refresh_s=settings.surrogate_refresh_s,
         pending_ttl_s=settings.surrogate_pending_ttl_s,

@@ -11,12 +11,9 @@ finished fit (or the stated prior of `surrogate.models.PriorPredictor` until the
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import threading
 import time
 from collections import OrderedDict
-from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -26,18 +23,14 @@ from client.models import SurrogateState
 from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
-from server.surrogates import fitproc
-from surrogate.encoding import Domain, SpaceEncoder
-from surrogate.models import (
-    MIN_POINTS,
-    FeasibilityPredictor,
-    Fit,
-    PriorPredictor,
-    RecentPoints,
-    UnseenChoices,
-)
+from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
+from surrogate.domains import Domain, space_from_json
+from surrogate.encoding import SpaceEncoder
+from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
+from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
+from surrogate.suggest import TypeModel
 
 log = logging.getLogger("cpkb.surrogates")
 Key = tuple[str, str]
@@ -45,24 +38,13 @@ Key = tuple[str, str]
 
 @dataclass(frozen=True)
 class EngineConfig:
-    fit_in_process: bool = True
+    fit_in_child_process: bool = True  # False: fit in a thread of the server's own process
     fit_threads: int = 1
     max_inducing: int = 128
     refresh_s: float = 0.5
     pending_ttl_s: float = 30.0
     prefit_types: int = 16
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
-
-
-@dataclass(frozen=True)
-class ModelHandle:
-    """What a request needs of one type: its decision space and current predictor (the latest
-    fit, with the points that arrived since weighed in: `surrogate.models.RecentPoints`)."""
-
-    space: dict[str, Domain]
-    predictor: FeasibilityPredictor
-    n_points: int
-    n_fitted: int
 
 
 @dataclass
@@ -80,30 +62,11 @@ class _Entry:
     fitted_at: datetime | None = None
     error: str | None = None
     merging: threading.Lock = field(default_factory=threading.Lock, repr=False)
-    seen: tuple[tuple[slice, np.ndarray], ...] = ()  # the fit's categorical choices (UnseenChoices)
+    seen: Seen = ()  # the fit's categorical choices (UnseenChoices)
 
     @property
     def n_points(self) -> int:
         return len(self.y)
-
-
-def _prior(z: np.ndarray, y: np.ndarray) -> PriorPredictor:
-    return PriorPredictor(feasible=z[y], infeasible=z[~y])
-
-
-def _seen_choices(encoder: SpaceEncoder, z: np.ndarray) -> tuple[tuple[slice, np.ndarray], ...]:
-    """Per categorical variable of the encoding: its columns and the distinct rows of `z` there
-    (the choices the fitted points hold)."""
-    seen = []
-    for var in encoder.vars:
-        if var.table is not None:
-            columns = slice(var.start, var.start + var.width)
-            seen.append((columns, np.unique(z[:, columns], axis=0)))
-    return tuple(seen)
-
-
-def _needs_model(y: np.ndarray) -> bool:
-    return len(y) >= MIN_POINTS and bool(y.any()) and not bool(y.all())
 
 
 class SurrogateEngine:
@@ -117,7 +80,7 @@ class SurrogateEngine:
         self._cond = threading.Condition()
         self._stopping = False
         self._thread: threading.Thread | None = None
-        self._executor: Executor | None = None
+        self._fitter: Fitter | None = None
         self.fits = 0
 
     # --- lifecycle ---------------------------------------------------------------------
@@ -140,30 +103,43 @@ class SurrogateEngine:
             self._stopping = True
             self._cond.notify_all()
             thread, self._thread = self._thread, None
-            executor, self._executor = self._executor, None
-        if isinstance(executor, ProcessPoolExecutor):
-            workers = list((getattr(executor, "_processes", None) or {}).values())
-            executor.shutdown(wait=False, cancel_futures=True)
-            for worker in workers:
-                worker.terminate()
-            for worker in workers:
-                worker.join(timeout=5)
-        elif executor is not None:
-            executor.shutdown(wait=False, cancel_futures=True)
+            fitter, self._fitter = self._fitter, None
+        if fitter is not None:
+            fitter.terminate()
         if thread is not None:
             thread.join(timeout=30)
 
-    def _new_executor(self, in_process: bool | None = None) -> Executor:
-        if self.config.fit_in_process if in_process is None else in_process:
-            return ProcessPoolExecutor(
-                max_workers=1,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=fitproc.init_worker,
-                initargs=(self.config.fit_threads,),
-            )
-        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cpkb-fit")
-        executor.submit(fitproc.warm_up)  # runs before the first fit, in the same thread
-        return executor
+    def _new_fitter(self) -> Fitter:
+        if not self.config.fit_in_child_process:
+            return ThreadFitter()
+        try:
+            return ChildProcessFitter(self.config.fit_threads)
+        except (RuntimeError, OSError) as exc:
+            # e.g. spawn refused inside an unguarded `__main__` script: fit in a thread instead.
+            log.warning("cannot start the fit process (%s); fitting in a thread", exc)
+            return ThreadFitter()
+
+    def _fitter_for_next_fit(self, replacing: Fitter | None = None) -> Fitter:
+        """The fitter to use (a new one in place of `replacing`). Only the coordinator thread
+        creates one; every swap happens under the engine's lock, so that `stop` always ends
+        the fitter that is in use."""
+        with self._cond:
+            if self._stopping:
+                raise RuntimeError("the surrogate engine is stopping")
+            if self._fitter is not None and self._fitter is not replacing:
+                return self._fitter
+        fresh = self._new_fitter()  # outside the lock: starting a process takes a while
+        with self._cond:
+            stale, self._fitter = self._fitter, fresh
+            stopping = self._stopping
+            if stopping:
+                self._fitter = None
+        if stale is not None:
+            stale.terminate()
+        if stopping:
+            fresh.terminate()
+            raise RuntimeError("the surrogate engine is stopping")
+        return fresh
 
     def _prefit(self) -> None:
         from server.services.kbs import list_kbs
@@ -187,9 +163,14 @@ class SurrogateEngine:
         for type_id in sorted(type_ids):
             self._enqueue((kb, type_id))
 
-    def model(self, kb: str, type_id: str) -> ModelHandle:
-        """The type's space and current predictor (NotFound if unknown). The first request for
-        a type this process has not seen loads its points here (one fast query)."""
+    def source(self, kb: str) -> KbModels:
+        """The models of one knowledge base, as `surrogate.suggest` asks for them."""
+        return KbModels(self, kb)
+
+    def model(self, kb: str, type_id: str) -> TypeModel:
+        """The type's space and current predictor (NotFound if unknown): the latest fit, with
+        the points that arrived since weighed in. The first request for a type this process has
+        not seen loads its points here (one fast query)."""
         key = (kb, type_id)
         with self._cond:
             entry = self._entries.get(key)
@@ -201,12 +182,8 @@ class SurrogateEngine:
             predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
             fitted = entry.fit is not None and entry.status == "ready"
             seen = entry.seen
-        if n_fitted < len(y):
-            recent, labels = z[n_fitted:], y[n_fitted:]
-            predictor = RecentPoints(predictor, recent[labels], recent[~labels])
-        if fitted and seen:
-            predictor = UnseenChoices(predictor, _prior(z, y), seen)
-        return ModelHandle(entry.space, predictor, len(y), n_fitted)
+        predictor = served_predictor(predictor, z, y, n_fitted, seen if fitted else ())
+        return TypeModel(entry.space, predictor, str(n_fitted), n_fitted, len(y))
 
     def _catch_up(self, key: Key, entry: _Entry) -> None:
         """A type in use whose points are older than `refresh_s`: load the new points (one
@@ -223,11 +200,11 @@ class SurrogateEngine:
             entry.merging.release()
         if entry.n_fitted == entry.n_points:
             return
-        if _needs_model(entry.y):
+        if needs_model(entry.y):
             self._enqueue(key, urgent=True)
             return
         with self._cond:
-            entry.predictor = _prior(entry.z, entry.y)
+            entry.predictor = prior(entry.z, entry.y)
             entry.n_fitted, entry.status = entry.n_points, "prior"
 
     def predict(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
@@ -282,14 +259,15 @@ class SurrogateEngine:
 
     def _load_new(self, key: Key) -> _Entry:
         points = load_training_points(self.store, *key)
-        encoder = SpaceEncoder(points.space)
+        space = space_from_json({label: d.model_dump() for label, d in points.space.items()})
+        encoder = SpaceEncoder(space)
         z = encoder.encode_points(points.x) if points.x else np.zeros((0, encoder.dim))
         y = np.asarray(points.feasible, dtype=bool)
-        entry = _Entry(points.space, encoder, z, y, points.last_point_id, _prior(z, y))
+        entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y))
         entry.checked_at = time.monotonic()
         with self._cond:
             entry = self._entries.setdefault(key, entry)
-        if _needs_model(entry.y):
+        if needs_model(entry.y):
             self._enqueue(key)
         return entry
 
@@ -328,46 +306,31 @@ class SurrogateEngine:
                 entry = self._merge(key, entry, new)
         if entry.n_fitted == entry.n_points:
             return  # nothing new (after an error: retried when points arrive)
-        if not _needs_model(entry.y):
+        if not needs_model(entry.y):
             with self._cond:
-                entry.predictor = _prior(entry.z, entry.y)
+                entry.predictor = prior(entry.z, entry.y)
                 entry.n_fitted, entry.status = entry.n_points, "prior"
             return
         z, y, warm, n = entry.z, entry.y, entry.fit, entry.n_points
         fit = self._fit(z, y, warm)
         self.fits += 1
         _record_fit(fit.fit_seconds, n)
-        seen = _seen_choices(entry.encoder, z[:n])
+        seen = seen_choices(entry.encoder, z[:n])
         with self._cond:
             entry.fit, entry.predictor, entry.seen = fit, fit.predictor, seen
             entry.n_fitted, entry.status, entry.error = n, "ready", None
             entry.fitted_at = datetime.now(UTC)
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
-        with self._cond:
-            if self._stopping:
-                raise RuntimeError("the surrogate engine is stopping")
-            if self._executor is None:
-                self._executor = self._new_executor()
         args = (z, y, 0, warm, self.config.max_inducing)
+        fitter = self._fitter_for_next_fit()
         try:
-            future = self._executor.submit(fitproc.fit_job, *args)
-        except (RuntimeError, OSError) as exc:
-            if not isinstance(self._executor, ProcessPoolExecutor):
-                raise
-            # e.g. spawn refused inside an unguarded `__main__` script: fit in a thread instead.
-            log.warning("cannot start the fit process (%s); fitting in a thread", exc)
-            self._executor.shutdown(wait=False, cancel_futures=True)
-            self._executor = self._new_executor(in_process=False)
-            future = self._executor.submit(fitproc.fit_job, *args)
-        try:
-            return future.result()
-        except BrokenProcessPool:
+            return fitter.fit(*args)
+        except WorkerDied:
             if self._stopping:
                 raise
             log.warning("fit worker died; starting a new one")
-            self._executor = self._new_executor()
-            return self._executor.submit(fitproc.fit_job, *args).result()
+            return self._fitter_for_next_fit(replacing=fitter).fit(*args)
 
     def _merge(self, key: Key, entry: _Entry, new: TrainingPoints) -> _Entry:
         entry.checked_at = time.monotonic()
@@ -397,3 +360,14 @@ def _record_fit(seconds: float, n_points: int, ok: bool = True) -> None:
     except ImportError:
         return
     record_fit(seconds, n_points, ok)
+
+
+class KbModels:
+    """The `surrogate.suggest.ModelSource` of one knowledge base of an engine."""
+
+    def __init__(self, engine: SurrogateEngine, kb: str) -> None:
+        self.engine = engine
+        self.kb = kb
+
+    def model(self, type_id: str) -> TypeModel:
+        return self.engine.model(self.kb, type_id)

@@ -21,12 +21,14 @@ def test_a_snapshot_answers_what_predict_answers(client: Any) -> None:
     assert {m["type_id"] for m in body["models"]} == set(type_ids)
     assert body["optimizer"]["n_gen"] >= 0 and body["optimizer"]["margin_abs"] >= 0
     xs = [{"#dir": d, "#pose": [x, 0.3, 0.0]} for d in ("top", "front") for x in (0.1, 0.9)]
-    for model in map(ModelSnapshot.model_validate, body["models"]):
-        assert model.n_fitted == model.n_points == 20
-        assert model.predictor["kind"] in {"vgp", "unseen"}
+    for raw in body["models"]:
+        wire = ModelSnapshot.model_validate(raw)
+        assert wire.n_fitted == wire.n_points == 20
+        assert wire.predictor["kind"] in {"vgp", "unseen"}
+        type_id, model = snapshot.model_from_json(raw)
         encoder = SpaceEncoder(model.space)
-        local = snapshot.load(model.predictor).proba(encoder.encode_points(xs))
-        url = f"/v1/kbs/default/types/{model.type_id}/predict"
+        local = model.predictor.proba(encoder.encode_points(xs))
+        url = f"/v1/kbs/default/types/{type_id}/predict"
         served = client.post(url, json={"x": xs}).json()["p_feasible"]
         np.testing.assert_allclose(local, served, rtol=0, atol=1e-12)
 

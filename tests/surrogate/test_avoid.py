@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain
 from surrogate.avoid import AvoidSet
+from surrogate.domains import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import SpaceEncoder
 
 SPACE = {

@@ -119,7 +119,7 @@ def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
 
 
 def test_a_choice_no_point_holds_gets_the_prior_not_the_fits_extrapolation() -> None:
-    from client.models import CategoricalDomain, ContinuousDomain
+    from surrogate.domains import CategoricalDomain, ContinuousDomain
     from surrogate.encoding import SpaceEncoder
     from surrogate.models import UnseenChoices
 

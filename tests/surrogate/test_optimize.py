@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from client.models import CategoricalDomain, ContinuousDomain
-from surrogate.acquisition import MPF, ConstraintTerm, ucb
+from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints, Scored, ucb
+from surrogate.domains import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_regression
 from surrogate.optimize import (
@@ -89,7 +89,8 @@ def test_excluded_points_are_never_proposed(mpf: MPF) -> None:
 
 def test_pending_points_push_suggestions_apart(mpf: MPF) -> None:
     first = maximize(mpf, SPACE, seed=5)
-    second = maximize(mpf, SPACE, pending=[first.x], seed=5)
+    with_pending = MPF(mpf.terms, pending=PendingPoints([first.x]))
+    second = maximize(with_pending, SPACE, seed=5)
     gap = np.linalg.norm(np.subtract(first.x["pose"], second.x["pose"]))
     assert second.x["dir"] != first.x["dir"] or gap > 0.1
     assert truly_feasible(second.x)
@@ -153,7 +154,7 @@ def test_children_of_a_flat_acquisition_fill_the_inside_of_the_box() -> None:
     config = OptimizerConfig(margin=0.1, margin_abs=0.025)
     children: list[dict] = []
     for seed in range(24):
-        children.append(maximize(flat, box, exclude=children, seed=seed, config=config).x)
+        children.append(maximize(Scored(flat), box, exclude=children, seed=seed, config=config).x)
     poses = np.array([child["pose"] for child in children])
     near_a_wall = (np.minimum(poses, 1.0 - poses) < 0.05).any(axis=1)
     assert near_a_wall.mean() < 0.25
@@ -171,7 +172,7 @@ def test_a_batch_scores_each_candidate_once(mpf: MPF) -> None:
         return mpf(cols)
 
     config = OptimizerConfig(pop_size=24, n_gen=3, raw_samples=128)
-    found = maximize_batch(counting, SPACE, seed=4, config=config, n=3)
+    found = maximize_batch(Scored(counting), SPACE, seed=4, config=config, n=3)
     rows = np.vstack(scored)
     assert len(found) == 3
     assert len(rows) == len(np.unique(rows, axis=0))

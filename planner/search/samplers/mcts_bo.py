@@ -41,6 +41,7 @@ class MctsBoSampler:
 
     def propose(self, ctx: SampleContext) -> Value:
         from surrogate.acquisition import ucb
+        from surrogate.domains import space_from_json
         from surrogate.encoding import SpaceEncoder
         from surrogate.models import fit_regression
         from surrogate.optimize import maximize
@@ -58,7 +59,7 @@ class MctsBoSampler:
             self.unguided += 1
             return space_filling(ctx)
         var = ctx.var.var
-        space = {var: domain}
+        space = space_from_json({var: domain.model_dump()})
         values = ctx.siblings[-MAX_CHILDREN_FITTED:]
         z = SpaceEncoder(space).encode_points([{var: v} for v in values])
         key = (var, tuple(sorted((k, str(v)) for k, v in ctx.path.items())))
