@@ -63,7 +63,7 @@ def run_render(args: argparse.Namespace) -> int:
     from planner.sim import load_world
     from planner.sim.render import mark_regions, replay, snapshot
     from planner.sim.scene import GuiUnavailable
-    from planner.tasks import TaskError
+    from planner.tasks import TaskError, load_task
 
     if args.out is None and not args.gui:
         raise CliError("give --out FILE.png, or --gui to watch")
@@ -71,6 +71,8 @@ def run_render(args: argparse.Namespace) -> int:
         raise CliError(f"--out must name a .png file, got {args.out}")
     bindings = _bindings(args.binding)
     try:
+        for warning in load_task(args.task).warnings:
+            print(f"warning: {warning}", file=sys.stderr)
         world = load_world(args.task, seed=args.seed, gui=args.gui)
     except TaskError as exc:
         raise CliError(str(exc)) from None
