@@ -37,7 +37,7 @@ class KillableServer:
         self.proc: subprocess.Popen | None = None
         self.starts = 0
 
-    def start(self, timeout: float = 90.0) -> None:
+    def start(self, timeout: float = 180.0) -> None:
         self.starts += 1
         log = (self.log_dir / f"server-{self.starts}.log").open("wb")
         cmd = [sys.executable, "-m", "cpkb", "serve", "--db", self.db_url]

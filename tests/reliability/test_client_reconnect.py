@@ -18,4 +18,4 @@ def test_a_server_never_reached_fails_after_the_counted_retries() -> None:
         pytest.raises(ServiceUnavailable, match="cannot reach"),
     ):
         client.list_kbs()
-    assert time.monotonic() - start < 5, "a wrong URL must not wait out the reconnect budget"
+    assert time.monotonic() - start < 30, "a wrong URL must not wait out the reconnect budget"

@@ -118,12 +118,12 @@ def test_sigkill_mid_stream_loses_nothing_and_stores_nothing_twice(
     server = KillableServer(sqlite_url, tmp_path, env={"CPKB_SURROGATE_ENABLED": "false"})
     server.start()
     stop = threading.Event()
-    posters = [Poster(server.url, f"w{i}", stop, time.monotonic() + 120) for i in range(3)]
+    posters = [Poster(server.url, f"w{i}", stop, time.monotonic() + 480) for i in range(3)]
     stream = ClientStream(server.url, stop)
     try:
         for thread in (*posters, stream):
             thread.start()
-        wait_for(lambda: Poster.total(posters) >= 100, 60, "100 points before the kill")
+        wait_for(lambda: Poster.total(posters) >= 100, 120, "100 points before the kill")
         server.kill()
         at_kill, stream_at_kill = Poster.total(posters), len(stream.results)
         time.sleep(0.3)
@@ -132,7 +132,7 @@ def test_sigkill_mid_stream_loses_nothing_and_stores_nothing_twice(
             lambda: (
                 Poster.total(posters) >= at_kill + 100 and len(stream.results) > stream_at_kill + 5
             ),
-            90,
+            240,
             "points from every poster after the restart",
         )
     finally:

@@ -76,7 +76,7 @@ def wait_fitted(http: httpx.Client, type_id: str, n_points: int, timeout: float 
     raise AssertionError(f"no complete fit of {n_points} points: {surrogate(http, type_id)}")
 
 
-def wait_fitting(http: httpx.Client, type_id: str, timeout: float = 30) -> None:
+def wait_fitting(http: httpx.Client, type_id: str, timeout: float = 120) -> None:
     deadline = time.monotonic() + timeout
     while surrogate(http, type_id).get("status") != "fitting":
         assert time.monotonic() < deadline, "the fit never started"
@@ -166,7 +166,7 @@ def test_killed_fits_leave_complete_models(sqlite_url: str, tmp_path: Path) -> N
         assert workers
         server.proc.send_signal(signal.SIGKILL)
         server.proc.wait(timeout=10)
-        deadline = time.monotonic() + 15
+        deadline = time.monotonic() + 120  # it polls its parent; a loaded machine is slow
         while any(alive(pid) for pid in workers):
             assert time.monotonic() < deadline, "the fit worker outlived its server"
             time.sleep(0.1)

@@ -40,7 +40,7 @@ def test_a_prior_follows_new_points_while_the_fit_queue_is_busy(sqlite_url: str)
 
         type_id = post([0.9, 0.9, 2.0])
         url = f"/v1/kbs/default/types/{type_id}/predict"
-        assert client.app.state.surrogates.wait_idle(timeout=60)
+        assert client.app.state.surrogates.wait_idle(timeout=300)
         before = client.post(url, json={"x": [x]}).json()["p_feasible"][0]
         held, release = threading.Event(), threading.Event()
         refresh = engine._refresh
@@ -53,7 +53,7 @@ def test_a_prior_follows_new_points_while_the_fit_queue_is_busy(sqlite_url: str)
         engine._refresh = busy
         try:
             post([0.31, 0.3, 0.0])
-            assert held.wait(timeout=10)
+            assert held.wait(timeout=120)
             after = client.post(url, json={"x": [x]}).json()["p_feasible"][0]
             state = client.get(f"/v1/kbs/default/types/{type_id}").json()["surrogate"]
         finally:

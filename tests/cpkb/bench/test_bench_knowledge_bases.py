@@ -33,7 +33,10 @@ def test_fresh_knowledge_base_per_scenario_shared_by_its_predecessors(tmp_path: 
 
 
 def test_runs_cut_short_leave_no_knowledge_base_behind(tmp_path: Path) -> None:
-    run = functools.partial(toy_run_with_kb, log_path=str(tmp_path / "calls.jsonl"), sleep_s=3.0)
+    """The runs outlast the limit, which is long enough for them to have stocked their
+    knowledge bases (the log shows it) on a loaded machine too."""
+    log = tmp_path / "calls.jsonl"
+    run = functools.partial(toy_run_with_kb, log_path=str(log), sleep_s=600.0)
     with knowledge_service(None, None) as kbs:
         outcome = run_bench(
             expand(["desk"], ["cp-bo"], range(4)),
@@ -42,9 +45,10 @@ def test_runs_cut_short_leave_no_knowledge_base_behind(tmp_path: Path) -> None:
             workers=2,
             max_rollouts=100,
             kb_service=kbs,
-            time_limit_s=1.5,
+            time_limit_s=30,
         )
         with CpkbClient(kbs.url) as client:
             left = [kb.name for kb in client.list_kbs()]
     assert outcome.timed_out and outcome.finished == 0
+    assert log.read_text().splitlines()  # runs in flight had posted to their KBs
     assert left == ["default"]

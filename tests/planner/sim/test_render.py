@@ -10,7 +10,7 @@ from pathlib import Path
 
 def _cpkb(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "cpkb", *args], capture_output=True, text=True, timeout=120
+        [sys.executable, "-m", "cpkb", *args], capture_output=True, text=True, timeout=300
     )
 
 
@@ -49,7 +49,7 @@ def test_gui_without_a_display_is_a_clear_error() -> None:
         [sys.executable, "-m", "cpkb", "render", "--task", "desk", "--gui"],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=300,
         env=env,
     )
     assert done.returncode == 2
