@@ -69,7 +69,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog="Exit status: 0 when every asked run has a result, 1 when runs failed or were "
         f"left (time limit, interrupt), 2 for a usage error, {EXIT_STATUS_HELP}.",
     )
-    parser.add_argument("--tasks", type=_csv_list, default=_csv_list(DEFAULT_TASKS))
+    parser.add_argument(
+        "--tasks",
+        type=_csv_list,
+        default=_csv_list(DEFAULT_TASKS),
+        help="shipped names, task files, or suite directories (a directory stands for its "
+        f"target task files, e.g. one written by `cpkb generate`); default {DEFAULT_TASKS}",
+    )
+
     parser.add_argument(
         "--methods",
         type=_csv_list,
@@ -112,6 +119,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=handle)
 
 
+def suite_tasks(tasks: list[str]) -> list[str]:
+    """`--tasks` with each directory replaced by its suite's target task files."""
+    from pathlib import Path
+
+    from planner.tasks import TaskError
+    from planner.tasks.suites import suite_targets
+
+    expanded: list[str] = []
+    for task in tasks:
+        if not os.path.isdir(task):
+            expanded.append(task)
+            continue
+        try:
+            expanded += [str(p) for p in suite_targets(Path(task))]
+        except TaskError as exc:
+            raise CliError(str(exc)) from None
+    return expanded
+
+
 def handle(args: argparse.Namespace) -> int:
     from cpkb.bench.app import BenchSettings, check_request, run_command
     from server.settings import Settings
@@ -120,7 +146,7 @@ def handle(args: argparse.Namespace) -> int:
     token = args.token or (configured.get_secret_value() if configured is not None else None)
 
     settings = BenchSettings(
-        tasks=args.tasks,
+        tasks=suite_tasks(args.tasks),
         methods=args.methods,
         seeds=range(args.first_seed, args.first_seed + args.seeds),
         workers=args.workers,
