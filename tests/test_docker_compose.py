@@ -197,5 +197,6 @@ def test_secrets_have_no_defaults_and_stay_off_command_lines() -> None:
         assert "CPKB_TOKEN" not in command and "--token" not in command, name
 
 
+@pytest.mark.slow
 def test_the_planner_worker_is_restarted_when_it_gives_up(services: dict[str, Any]) -> None:
     assert services["planner"]["restart"] in {"on-failure", "unless-stopped", "always"}

@@ -68,6 +68,7 @@ def test_unreachable_server_is_one_line_exit_2() -> None:
     assert "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_serve_with_a_bad_database_is_one_line_exit_2(tmp_path: Path) -> None:
     for url in ("mysql://nobody@127.0.0.1/x", "postgresql+psycopg://postgres@127.0.0.1:1/x"):
         out = cpkb("serve", "--db", url, "--port", str(free_port()), cwd=tmp_path)
@@ -89,6 +90,7 @@ def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Pat
     assert not db.exists()
 
 
+@pytest.mark.slow
 def test_db_upgrade_defaults_to_cpkb_db_in_the_current_directory(tmp_path: Path) -> None:
     out = cpkb("db", "upgrade", cwd=tmp_path)
     assert out.returncode == 0, out.stderr

@@ -23,6 +23,7 @@ def _loop(*args: str, **env: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("sh") is None, reason="needs a POSIX shell")
 def test_an_unsolved_run_does_not_stop_the_worker() -> None:
     # quasi-random needs no knowledge base; one rollout never solves desk, so each run exits 1.
@@ -33,6 +34,7 @@ def test_an_unsolved_run_does_not_stop_the_worker() -> None:
     assert not any(r["solved"] for r in runs)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("sh") is None, reason="needs a POSIX shell")
 def test_a_worker_that_cannot_reach_its_service_retries_then_gives_up() -> None:
     result = _loop(

@@ -12,6 +12,7 @@ import json
 import math
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 from fuzz_strategies import bad_x, graphs, points, x_for
 from fuzz_support import FUZZ, MAX_BODY_BYTES, snapshot
@@ -54,6 +55,7 @@ def assert_refused(api: TestClient, response: Any, before: dict[str, Any]) -> No
     assert snapshot(api) == before, "a refused request changed what is stored"
 
 
+@pytest.mark.slow
 @FUZZ
 @given(point=points())
 def test_any_valid_point_is_stored_or_a_clear_conflict(api: TestClient, point: dict) -> None:

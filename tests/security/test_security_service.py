@@ -112,6 +112,7 @@ def server_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         yield url
 
 
+@pytest.mark.slow
 def test_client_sends_its_token_to_a_real_server(server_url: str) -> None:
     with CpkbClient(server_url, retries=0) as anonymous:
         assert anonymous.list_kbs()[0].name == "default"
@@ -143,6 +144,7 @@ def test_cli_passes_the_token_from_option_or_environment(
     assert "lab1" not in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_serve_refuses_an_unreadable_tokens_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

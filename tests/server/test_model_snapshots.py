@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 from suggest_support import post_points
 
 from client.models import ModelSnapshot
@@ -12,6 +13,7 @@ from surrogate import snapshot
 from surrogate.encoding import SpaceEncoder
 
 
+@pytest.mark.slow
 def test_a_snapshot_answers_what_predict_answers(client: Any) -> None:
     type_ids = post_points(client, 20)
     assert client.app.state.surrogates.wait_idle(timeout=300)
@@ -33,6 +35,7 @@ def test_a_snapshot_answers_what_predict_answers(client: Any) -> None:
         np.testing.assert_allclose(local, served, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_a_known_version_is_left_out_until_a_fit_lands(client: Any) -> None:
     type_ids = post_points(client, 20)
     engine = client.app.state.surrogates

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from suggest_support import (
     SPACE,
     as_decision,
@@ -58,6 +59,7 @@ def test_without_constraints_a_space_filling_point_away_from_exclude(client: Any
     assert max(answer["x"]["p"][:2]) > 0.3 or abs(answer["x"]["p"][2]) > 1.0
 
 
+@pytest.mark.slow
 def test_mpf_suggestions_land_in_both_constraints_once_fitted(client: Any) -> None:
     type_ids = post_points(client, 40)
     assert client.app.state.surrogates.wait_idle(timeout=300)
@@ -73,6 +75,7 @@ def test_mpf_suggestions_land_in_both_constraints_once_fitted(client: Any) -> No
     assert feasible >= 4
 
 
+@pytest.mark.slow
 def test_fixed_variables_apply_and_exclude_is_respected(client: Any) -> None:
     type_ids = post_points(client, 30)
     assert client.app.state.surrogates.wait_idle(timeout=300)
@@ -83,6 +86,7 @@ def test_fixed_variables_apply_and_exclude_is_respected(client: Any) -> None:
     assert again != first
 
 
+@pytest.mark.slow
 def test_pending_suggestions_push_concurrent_planners_apart(sqlite_url: str) -> None:
     with make_client(sqlite_url) as client:
         type_ids = post_points(client, 30)
@@ -100,6 +104,7 @@ def test_pending_suggestions_push_concurrent_planners_apart(sqlite_url: str) -> 
         assert client.app.state.surrogates.pending.count("default") == 1
 
 
+@pytest.mark.slow
 def test_a_seed_reproduces_the_suggestion_for_a_given_model_state(sqlite_url: str) -> None:
     with make_client(sqlite_url, surrogate_pending_ttl_s=0) as client:
         type_ids = post_points(client, 12)
@@ -108,6 +113,7 @@ def test_a_seed_reproduces_the_suggestion_for_a_given_model_state(sqlite_url: st
         assert client.post(URL, json=body).json() == client.post(URL, json=body).json()
 
 
+@pytest.mark.slow
 def test_lookahead_picks_a_choice_that_a_feasible_continuation_can_follow(
     sqlite_url: str,
 ) -> None:
@@ -127,6 +133,7 @@ def test_lookahead_picks_a_choice_that_a_feasible_continuation_can_follow(
             assert answer.status_code == 422 and "lookahead" in answer.text
 
 
+@pytest.mark.slow
 def test_a_batch_is_spread_distinct_and_pending(sqlite_url: str) -> None:
     with make_client(sqlite_url, surrogate_pending_ttl_s=0) as client:
         type_ids = post_points(client, 40)
@@ -147,6 +154,7 @@ def test_a_batch_is_spread_distinct_and_pending(sqlite_url: str) -> None:
         assert client.app.state.surrogates.pending.count("default") == 4
 
 
+@pytest.mark.slow
 def test_a_batch_over_lookahead_differs_in_the_node_variable(sqlite_url: str) -> None:
     with make_client(sqlite_url) as client:
         type_ids = post_points(client, 30)

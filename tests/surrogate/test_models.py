@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gpytorch
 import numpy as np
+import pytest
 import torch
 
 from surrogate.models import (
@@ -47,6 +48,7 @@ def test_cached_predictor_matches_gpytorch() -> None:
     assert np.allclose(fit.predictor.proba(zt), p, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_inducing_points_are_bounded_and_warm_start_is_cheaper() -> None:
     z, y = half_space(200, 4)
     cold = fit_classifier(z, y, seed=0, max_inducing=32, max_iters=150)
@@ -70,6 +72,7 @@ def test_prior_for_few_points_or_one_class() -> None:
     assert mixed.kind == "prior" and mixed.predictor.proba(z[:1])[0] > 0.9
 
 
+@pytest.mark.slow
 def test_imbalanced_classes_still_find_the_small_feasible_region() -> None:
     rng = np.random.default_rng(7)
     z = rng.random((80, 2))

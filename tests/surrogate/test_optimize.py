@@ -54,6 +54,7 @@ def truly_feasible(x: dict) -> bool:
     return bool(right_half(cols)[0] and low_band_not_top(cols)[0])
 
 
+@pytest.mark.slow
 def test_mpf_lands_in_the_intersection_of_two_constraints(mpf: MPF) -> None:
     found = [maximize(mpf, SPACE, seed=seed) for seed in range(5)]
     assert all(truly_feasible(s.x) for s in found)

@@ -91,6 +91,7 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads processes from /proc")
 def test_a_terminated_bench_stops_its_embedded_service(tmp_path: Path) -> None:
     """`kill` (SIGTERM) on a bench unwinds like Ctrl-C: it reports what it has, and its

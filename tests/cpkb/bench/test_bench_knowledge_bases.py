@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
+import pytest
 from bench_toy_planner import toy_run_with_kb
 
 from client import CpkbClient
@@ -14,6 +15,7 @@ from cpkb.bench.runner import run_bench
 from cpkb.bench.scenarios import expand
 
 
+@pytest.mark.slow
 def test_fresh_knowledge_base_per_scenario_shared_by_its_predecessors(tmp_path: Path) -> None:
     run = functools.partial(toy_run_with_kb, log_path=str(tmp_path / "calls.jsonl"))
     scenarios = expand(["desk", "pack"], ["cp-bo", "cp-bo-transfer"], range(2))
@@ -32,6 +34,7 @@ def test_fresh_knowledge_base_per_scenario_shared_by_its_predecessors(tmp_path: 
     assert by_cell[("pack", "cp-bo-transfer")]["kb_points_before"] == 3
 
 
+@pytest.mark.slow
 def test_runs_cut_short_leave_no_knowledge_base_behind(tmp_path: Path) -> None:
     """The runs outlast the limit, which is long enough for them to have stocked their
     knowledge bases (the log shows it) on a loaded machine too."""

@@ -117,6 +117,7 @@ def test_rerun_with_another_rollout_cap_is_refused(tmp_path: Path) -> None:
         run_bench(scenarios, tmp_path / "out", run, workers=1, max_rollouts=300)
 
 
+@pytest.mark.slow
 def test_time_limit_stops_and_a_rerun_finishes(tmp_path: Path) -> None:
     """Seed 0's two runs are quick, every later one outlasts the limit: the limit must stop
     the bench with exactly seed 0 recorded, however long a loaded machine takes to start."""

@@ -105,6 +105,7 @@ def test_run_plan_reports_what_the_knowledge_base_did(live_kb):
         assert key in report
 
 
+@pytest.mark.slow
 def test_an_unreachable_knowledge_base_is_a_clear_error():
     from client import ServiceUnavailable
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from client.models import ContinuousDomain
 from planner.search.samplers.base import SampleContext
@@ -35,6 +36,7 @@ def test_equal_rewards_fall_back_to_space_filling():
     assert all(0.0 <= v <= 1.0 for v in value)
 
 
+@pytest.mark.slow
 def test_ucb_goes_where_the_rewards_are_high_and_is_seeded():
     rng = np.random.default_rng(4)
     siblings = rng.random((12, 2)).tolist()

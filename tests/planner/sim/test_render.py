@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 
 def _cpkb(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
@@ -14,6 +16,7 @@ def _cpkb(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_render_writes_a_png_without_a_display(tmp_path: Path) -> None:
     out = tmp_path / "desk.png"
     done = _cpkb("render", "--task", "desk", "--out", str(out), "--binding", '{"#dir1": "front"}')
@@ -30,6 +33,7 @@ def test_tasks_lists_one_line_per_task() -> None:
     assert names == ["deskP", "desk", "regrasp", "packP1", "packP2", "packP3", "pack"]
 
 
+@pytest.mark.slow
 def test_render_mistakes_are_one_line_errors(tmp_path: Path) -> None:
     missing = _cpkb("render", "--task", "nowhere", "--out", str(tmp_path / "x.png"))
     assert missing.returncode == 2 and "no such task" in missing.stderr

@@ -174,6 +174,7 @@ def _hand_yaw(world: PyBulletWorld, direction: str, seed: list[float]) -> float:
     return math.atan2(approach[1], approach[0])
 
 
+@pytest.mark.slow
 def test_a_held_body_is_placed_by_the_hand_heading_whichever_face_it_holds() -> None:
     """The seed's yaw is the hand's: front and right grasps put the hand at the same heading
     for one seed, so their feasible yaws are one band (deskP, uniform samples: both feasible
