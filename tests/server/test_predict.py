@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from suggest_support import make_client, post_points
 
 
+@pytest.mark.slow
 def test_predict_answers_probabilities_or_a_clear_4xx(client: Any) -> None:
     type_ids = post_points(client, 20)
     assert client.app.state.surrogates.wait_idle(timeout=300)

@@ -71,6 +71,7 @@ def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
         raise AssertionError("fits did not land in 120 s")
 
 
+@pytest.mark.slow
 def test_own_points_weigh_in_before_the_next_fetch():
     request = _grasp_request()
     local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False)
@@ -89,6 +90,7 @@ def test_own_points_weigh_in_before_the_next_fetch():
     assert again.x != first.x
 
 
+@pytest.mark.slow
 def test_served_points_stay_pending_until_a_point_answers_them():
     """As in the service: a batch's unused points, and other nodes' recent suggestions, push
     the next suggestion away."""

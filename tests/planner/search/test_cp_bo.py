@@ -106,6 +106,7 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
         session.close()
 
 
+@pytest.mark.slow
 def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_kb):
     """The grasp's suggestion looks ahead to the placement: the placement node under a
     suggested grasp expands first with the placement that answer chose, for no request; its
