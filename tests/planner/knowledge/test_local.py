@@ -123,7 +123,7 @@ def test_a_refresh_runs_in_the_background_and_lands_at_the_next_suggestion():
     def fetch(ids, known):
         calls.append(dict(known))
         if len(calls) > 1:
-            assert release.wait(30)
+            assert release.wait(120)
         return fetch_models(ids, {})
 
     local = LocalSurrogates(fetch)
@@ -136,9 +136,10 @@ def test_a_refresh_runs_in_the_background_and_lands_at_the_next_suggestion():
     local.suggest(request, rollout=3, stored=1)
     assert local.fetches == 2
     assert local._models[type_id] is old and local._in_flight is not None
+    assert not local._in_flight.answer.done()  # held until `release`: it did not wait
     local.note(type_id, x, feasible=True, batch=2)
     release.set()
-    local._in_flight.answer.result(timeout=30)
+    local._in_flight.answer.result(timeout=120)
     local.suggest(request, rollout=4, stored=2)
     new = local._models[type_id]
     local.close()
