@@ -71,7 +71,6 @@ def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
         raise AssertionError("fits did not land in 120 s")
 
 
-@pytest.mark.slow
 def test_own_points_weigh_in_before_the_next_fetch():
     request = _grasp_request()
     local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False)
@@ -90,7 +89,6 @@ def test_own_points_weigh_in_before_the_next_fetch():
     assert again.x != first.x
 
 
-@pytest.mark.slow
 def test_served_points_stay_pending_until_a_point_answers_them():
     """As in the service: a batch's unused points, and other nodes' recent suggestions, push
     the next suggestion away."""
@@ -159,6 +157,7 @@ def test_a_planner_answers_its_own_suggestions(live_kb):
     assert 0 < result.model_fetches <= result.suggestions
 
 
+@pytest.mark.slow
 def test_a_failed_local_suggestion_falls_back_for_that_call_only(live_kb):
     """A fetch that fails (a passing network error, a service without snapshots): the service
     answers that call, the problem is counted, and the next call is answered here again."""
