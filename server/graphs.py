@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -213,8 +214,19 @@ def _same_values(new: Domain | None, stored: Domain | None) -> bool:
     return new == stored
 
 
-def check_x(x: dict[str, Value], space: dict[str, Domain]) -> None:
-    """Raise GraphError (message names the label) unless `x` is one value per decision."""
+def check_xs(xs: Sequence[Mapping[str, Value]], space: Mapping[str, Any], where: str) -> None:
+    """`check_x` for each point of a list, as a post checks its points; errors name the point
+    (`x[3].#pose[0]: ...`)."""
+    for i, x in enumerate(xs):
+        try:
+            check_x(x, space)
+        except GraphError as exc:
+            raise GraphError(f"{where}[{i}]{str(exc).removeprefix('x')}") from exc
+
+
+def check_x(x: Mapping[str, Value], space: Mapping[str, Any]) -> None:
+    """Raise GraphError (message names the label) unless `x` is one value per decision. Any
+    domain with the wire contract's fields will do (the surrogate library's as well)."""
     missing = [label for label in space if label not in x]
     if missing:
         raise GraphError(f"x: missing value for decision {missing[0]!r}")
@@ -223,7 +235,7 @@ def check_x(x: dict[str, Value], space: dict[str, Domain]) -> None:
         raise GraphError(f"x.{extra[0]}: not a decision of this graph ({sorted(space)})")
     for label, domain in space.items():
         value = x[label]
-        if isinstance(domain, CategoricalDomain):
+        if domain.kind == "categorical":
             if not isinstance(value, str):
                 raise GraphError(f"x.{label}: expected one of {domain.choices}, got {value!r}")
             if value not in domain.choices:

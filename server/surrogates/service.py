@@ -19,6 +19,7 @@ from client.models import (
     SuggestOut,
 )
 from server.errors import Conflict, InvalidInput
+from server.graphs import GraphError, check_xs
 from server.services.kbs import kb_id
 from server.surrogates.engine import SurrogateEngine
 from surrogate import snapshot
@@ -53,9 +54,10 @@ def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> 
     """P(feasible) of each x (decision label -> value) under the type's current surrogate."""
     handle = engine.model(kb, type_id)
     try:
+        check_xs(body.x, handle.space, where="x")  # as a post of these points would
         encoder = SpaceEncoder(handle.space)
         z = encoder.encode(encoder.columns(body.x, where="x"))
-    except EncodingError as exc:
+    except (EncodingError, GraphError) as exc:
         raise InvalidInput(str(exc)) from exc
     return PredictOut(p_feasible=[float(p) for p in handle.predictor.proba(z)])
 

@@ -62,3 +62,28 @@ def test_a_prior_follows_new_points_while_the_fit_queue_is_busy(sqlite_url: str)
             release.set()
         assert before > 0.45 and after < 0.2
         assert state["n_fitted"] == 2
+
+
+def test_predict_refuses_what_a_post_of_the_points_would(app_client: Any) -> None:
+    """On both backends: an unknown variable, a missing one, a value out of its domain."""
+    from service_support import make_point
+
+    posted = app_client.post("/v1/kbs/default/points", json={"points": [make_point(1)]})
+    (result,) = posted.json()["results"]
+    url = f"/v1/kbs/default/types/{result['type_id']}/predict"
+    good = {"#dir": "top", "#pose": [0.5, 0.5, 0.0]}
+    assert app_client.post(url, json={"x": [good]}).status_code == 200
+    for bad, named in [
+        ({**good, "#yaw": [0.1]}, "x[0].#yaw"),
+        ({"#dir": "top"}, "x[0]: missing value for decision '#pose'"),
+        ({**good, "#pose": [0.5, 0.5, 9.0]}, "x[0].#pose[2]"),
+    ]:
+        for body in ({"x": [bad]}, {"x": [good, bad]}):
+            answer = app_client.post(url, json=body)
+            assert answer.status_code == 422, answer.text
+            expected = named if len(body["x"]) == 1 else named.replace("x[0]", "x[1]")
+            assert answer.json()["detail"].startswith(expected), answer.json()
+            point = make_point(1)
+            point["x"] = bad
+            stored = app_client.post("/v1/kbs/default/points", json={"points": [point]})
+            assert stored.status_code == 422
