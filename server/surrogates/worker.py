@@ -8,6 +8,7 @@ seen at once (its sentinel fires) rather than leaving the caller waiting for an 
 from __future__ import annotations
 
 import multiprocessing
+import os
 from concurrent.futures import ThreadPoolExecutor
 from multiprocessing.connection import Connection, wait
 from typing import Any, Protocol
@@ -26,9 +27,9 @@ class Fitter(Protocol):
     def terminate(self) -> None: ...
 
 
-def _serve(conn: Connection, threads: int) -> None:
+def _serve(conn: Connection, threads: int, server_pid: int) -> None:
     """The child's loop: one fit per message, its result or its exception sent back."""
-    fitproc.init_worker(threads)
+    fitproc.init_worker(threads, server_pid)
     while True:
         try:
             args = conn.recv()
@@ -48,7 +49,7 @@ class ChildProcessFitter:
         context = multiprocessing.get_context("spawn")
         self._conn, child_end = context.Pipe()
         self._process = context.Process(
-            target=_serve, args=(child_end, threads), name="cpkb-fit", daemon=True
+            target=_serve, args=(child_end, threads, os.getpid()), name="cpkb-fit", daemon=True
         )
         self._process.start()
         child_end.close()

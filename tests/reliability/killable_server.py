@@ -103,3 +103,32 @@ def stored_keys(base_url: str, kb: str = "default") -> Counter[str | None]:
 def kb_point_count(base_url: str, kb: str = "default") -> int:
     kbs = httpx.get(f"{base_url}/v1/kbs", timeout=30).raise_for_status().json()
     return next(k["n_points"] for k in kbs if k["name"] == kb)
+
+
+def fit_workers(server_pid: int, *, trackers: bool = False) -> list[int]:
+    """The server's multiprocessing children (the fit worker; with `trackers`, also any
+    resource tracker), from /proc (any thread's)."""
+    children = [
+        pid
+        for task in Path(f"/proc/{server_pid}/task").iterdir()
+        for pid in (task / "children").read_text().split()
+    ]
+    workers = []
+    for pid in children:
+        try:
+            cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+        except FileNotFoundError:
+            continue
+        tracker = b"resource_tracker" in cmdline
+        if b"multiprocessing" in cmdline and (trackers or not tracker):
+            workers.append(int(pid))
+    return workers
+
+
+def alive(pid: int) -> bool:
+    """Running (not gone, not a zombie waiting to be reaped)."""
+    try:
+        status = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return False
+    return status.rsplit(")", 1)[1].split()[0] != "Z"

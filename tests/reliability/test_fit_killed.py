@@ -16,7 +16,7 @@ from pathlib import Path
 
 import httpx
 import pytest
-from killable_server import KillableServer
+from killable_server import KillableServer, alive, fit_workers
 
 DIRS = ["front", "right", "top", "back", "left"]
 GRAPH = {
@@ -100,33 +100,6 @@ def suggest_works(http: httpx.Client, type_id: str) -> None:
     response = http.post("/v1/kbs/default/suggest", json=body)
     assert response.status_code == 200, response.text
     assert 0 <= response.json()["mpf"] <= 1
-
-
-def fit_workers(server_pid: int) -> list[int]:
-    """The server's multiprocessing children (the fit worker), from /proc (any thread's)."""
-    children = [
-        pid
-        for task in Path(f"/proc/{server_pid}/task").iterdir()
-        for pid in (task / "children").read_text().split()
-    ]
-    workers = []
-    for pid in children:
-        try:
-            cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
-        except FileNotFoundError:
-            continue
-        if b"multiprocessing" in cmdline and b"resource_tracker" not in cmdline:
-            workers.append(int(pid))
-    return workers
-
-
-def alive(pid: int) -> bool:
-    """Running (not gone, not a zombie waiting to be reaped)."""
-    try:
-        status = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
-        return False
-    return status.rsplit(")", 1)[1].split()[0] != "Z"
 
 
 @pytest.mark.slow
