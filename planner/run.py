@@ -1,9 +1,11 @@
 """One binding search, composed: world + sampler + (for knowledge methods) the knowledge base.
 
-`run_plan` is the single entry point of `cpkb plan`, `cpkb demo` and `cpkb bench`. A task is a
-shipped task name, a task file, `analytic:<desk|deskP>` (the simulator-free worlds of
-`planner.search.analytic`) or a ready `BindingWorld`. Methods that use the knowledge base reach
-it at `kb_url`, or, with none given, in an embedded service on a temporary SQLite file.
+`run_plan` is the single entry point of `cpkb plan`, `cpkb demo` and `cpkb bench`; a `PlanRequest`
+says what to run. A task is a shipped task name, a task file, `analytic:<desk|deskP>` (the
+simulator-free worlds of `planner.search.analytic`) or a ready `BindingWorld`. Methods that use
+the knowledge base reach it at `kb_url`, or, with none given, in an embedded service on a
+temporary SQLite file. Every knob of the run is in the request's `PlanConfig`, recorded whole in
+its result.
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ import random
 import socket
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from client.models import Value
+from planner.config import PlanConfig, method_config
 from planner.search import PWUCT, SearchProgress
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
@@ -42,6 +45,43 @@ class Progress:
 SUGGEST_IN = ("planner", "service")
 
 
+@dataclass(frozen=True)
+class PlanRequest:
+    """One binding search: what to search, with which method and budget, where the knowledge
+    base is, and the configuration. `config` is the method's effective one: a preset method's
+    switches (`planner.config.PRESETS`) are applied to it on construction."""
+
+    task: str | Path | BindingWorld
+    method: str
+    seed: int
+    max_rollouts: int = 2000
+    stop_at_first: bool = True
+    kb_url: str | None = None
+    kb: str = "default"
+    token: str | None = None
+    worker: str | None = None
+    db_url: str | None = None
+    suggest_in: str = "planner"
+    gui: bool = False
+    config: PlanConfig = field(default_factory=PlanConfig)
+
+    def __post_init__(self) -> None:
+        if self.method not in sampler_registry.methods():
+            known = ", ".join(sampler_registry.methods())
+            raise ValueError(f"unknown method {self.method!r}; known: {known}")
+        if self.max_rollouts < 1:
+            raise ValueError("max_rollouts must be at least 1")
+        if self.suggest_in not in SUGGEST_IN:
+            raise ValueError(
+                f"suggest_in must be one of {', '.join(SUGGEST_IN)}, not {self.suggest_in!r}"
+            )
+        object.__setattr__(self, "config", method_config(self.method, self.config))
+
+    @property
+    def label(self) -> str:
+        return f"{getattr(self.task, 'name', self.task)} {self.method}"
+
+
 @dataclass
 class PlanResult:
     task: str
@@ -60,6 +100,7 @@ class PlanResult:
     types_activated: int = 0
     points_activated: int = 0
     types_active: int = 0
+    types_prematched: int = 0  # of types_activated, found before the search met their failure
     points_posted: int = 0
     suggestions: int = 0
     local_suggestions: int = 0
@@ -69,6 +110,7 @@ class PlanResult:
     kb: str | None = None
     run: str | None = None
     notes: list[str] = field(default_factory=list)
+    config: dict[str, dict[str, Any]] = field(default_factory=dict)  # the whole PlanConfig
 
     def to_json(self) -> dict[str, Any]:
         """The `cpkb plan --json` dict."""
@@ -117,184 +159,117 @@ def knowledge_service(kb_url: str | None, db_url: str | None = None) -> Iterator
 
 
 def run_plan(
-    task: str | Path | BindingWorld,
-    method: str,
-    seed: int,
+    task: PlanRequest | str | Path | BindingWorld,
+    method: str | None = None,
+    seed: int | None = None,
     *,
-    max_rollouts: int = 2000,
-    kb_url: str | None = None,
-    kb: str = "default",
-    token: str | None = None,
-    stop_at_first: bool = True,
     quiet: bool = True,
     progress: Callable[[Progress], None] | None = None,
-    gui: bool = False,
-    worker: str | None = None,
-    db_url: str | None = None,
-    suggest_in: str = "planner",
+    **options: Any,
 ) -> PlanResult:
-    """Search bindings for `task` with `method` until the first feasible binding list (or, with
-    `stop_at_first=False`, through the whole budget). `quiet=False` with no `progress` callback
-    draws a progress line on stderr. `suggest_in`: where MPF is maximised, in this process from
-    the service's model snapshots (`planner`) or by the service (`service`, which also pushes
-    concurrent planners of one knowledge base apart)."""
-    if method not in sampler_registry.methods():
-        raise ValueError(
-            f"unknown method {method!r}; known: {', '.join(sampler_registry.methods())}"
-        )
-    if max_rollouts < 1:
-        raise ValueError("max_rollouts must be at least 1")
-    if suggest_in not in SUGGEST_IN:
-        raise ValueError(f"suggest_in must be one of {', '.join(SUGGEST_IN)}, not {suggest_in!r}")
-    options = {
-        "max_rollouts": max_rollouts,
-        "kb_url": kb_url,
-        "kb": kb,
-        "token": token,
-        "stop_at_first": stop_at_first,
-        "gui": gui,
-        "worker": worker,
-        "db_url": db_url,
-        "suggest_in": suggest_in,
-    }
+    """Search bindings until the first feasible binding list (or, with `stop_at_first=False`,
+    through the whole budget). Takes a `PlanRequest`, or its fields (`run_plan("desk", "cp-bo",
+    0, max_rollouts=100)`). `quiet=False` with no `progress` callback draws a progress line on
+    stderr. `suggest_in`: where MPF is maximised, in this process from the service's model
+    snapshots (`planner`) or by the service (`service`, which also pushes concurrent planners of
+    one knowledge base apart)."""
+    if isinstance(task, PlanRequest):
+        if method is not None or seed is not None or options:
+            raise TypeError("give a PlanRequest or its fields, not both")
+        request = task
+    else:
+        if method is None or seed is None:
+            raise TypeError("run_plan needs a method and a seed")
+        request = PlanRequest(task, method, seed, **options)
     if not quiet and progress is None:
         from planner.display import live_progress
 
-        label = f"{getattr(task, 'name', task)} {method}"
-        with live_progress(label, max_rollouts) as shown:
-            return _plan(task, method, seed, progress=shown, **options)
-    return _plan(task, method, seed, progress=progress, **options)
+        with live_progress(request.label, request.max_rollouts) as shown:
+            return _plan(request, shown)
+    return _plan(request, progress)
 
 
-def _plan(
-    task: str | Path | BindingWorld,
-    method: str,
-    seed: int,
-    *,
-    max_rollouts: int,
-    kb_url: str | None,
-    kb: str,
-    token: str | None,
-    stop_at_first: bool,
-    progress: Callable[[Progress], None] | None,
-    gui: bool,
-    worker: str | None,
-    db_url: str | None,
-    suggest_in: str,
-) -> PlanResult:
-    seed_everything(seed)
+def _plan(request: PlanRequest, progress: Callable[[Progress], None] | None) -> PlanResult:
+    seed_everything(request.seed)
     started = time.perf_counter()
-    world = load_world(task, seed, gui=gui)
+    world = load_world(request.task, request.seed, gui=request.gui)
     try:
-        if not sampler_registry.uses_knowledge(method):
-            sampler = sampler_registry.make(method, seed=seed, world=world)
-            try:
-                return _search(
-                    world,
-                    method,
-                    seed,
-                    sampler,
-                    None,
-                    started,
-                    max_rollouts,
-                    stop_at_first,
-                    progress,
-                )
-            finally:
-                sampler.close()
-        return _plan_with_knowledge(
-            world,
-            method,
-            seed,
-            started,
-            max_rollouts,
-            stop_at_first,
-            progress,
-            kb_url=kb_url,
-            kb=kb,
-            token=token,
-            worker=worker,
-            db_url=db_url,
-            suggest_in=suggest_in,
+        if sampler_registry.uses_knowledge(request.method):
+            return _plan_with_knowledge(request, world, started, progress)
+        sampler = sampler_registry.make(
+            request.method, seed=request.seed, world=world, config=request.config
         )
+        try:
+            return _search(request, world, sampler, None, started, progress)
+        finally:
+            sampler.close()
     finally:
-        if world is not task:
+        if world is not request.task:
             close = getattr(world, "close", None)
             if close is not None:
                 close()
 
 
 def _plan_with_knowledge(
+    request: PlanRequest,
     world: BindingWorld,
-    method: str,
-    seed: int,
     started: float,
-    max_rollouts: int,
-    stop_at_first: bool,
     progress: Callable[[Progress], None] | None,
-    *,
-    kb_url: str | None,
-    kb: str,
-    token: str | None,
-    worker: str | None,
-    db_url: str | None,
-    suggest_in: str,
 ) -> PlanResult:
     from client import CpkbClient
     from planner.knowledge import KnowledgeSession
 
-    with knowledge_service(kb_url, db_url) as url, CpkbClient(url, token=token) as client:
-        client.create_kb(kb, exist_ok=True)
+    config = request.config
+    with (
+        knowledge_service(request.kb_url, request.db_url) as url,
+        CpkbClient(url, token=request.token) as client,
+    ):
+        client.create_kb(request.kb, exist_ok=True)
         session = KnowledgeSession(
             client,
-            kb,
+            request.kb,
             world,
-            worker=worker or f"{socket.gethostname()}:{os.getpid()}",
-            local=suggest_in == "planner",
+            worker=request.worker or f"{socket.gethostname()}:{os.getpid()}",
+            lookahead=config.cp_bo.lookahead,
+            local=request.suggest_in == "planner",
+            config=config.knowledge,
         )
-        sampler = sampler_registry.make(method, seed=seed, world=world, knowledge=session)
+        sampler = sampler_registry.make(
+            request.method, seed=request.seed, world=world, knowledge=session, config=config
+        )
         try:
-            session.prematch()
-            result = _search(
-                world,
-                method,
-                seed,
-                sampler,
-                session,
-                started,
-                max_rollouts,
-                stop_at_first,
-                progress,
-            )
+            if config.cp_bo.prematch:
+                session.prematch()
+            result = _search(request, world, sampler, session, started, progress)
         finally:
             sampler.close()
             session.close()
         stats = session.stats
-        result.kb_s = stats.kb_s
-        result.kb_parts = {part: round(s, 6) for part, s in sorted(stats.kb_parts.items())}
-        result.types_activated = stats.types_activated
-        result.points_activated = stats.points_activated
-        result.types_active = stats.types_active
-        result.points_posted = session.points_posted
-        result.suggestions = stats.suggestions
-        result.local_suggestions = stats.local_suggestions
-        result.model_fetches = stats.model_fetches
-        result.kb_errors = stats.errors + session.poster.failed
-        result.kb = kb
-        result.run = session.run
-        result.notes.extend(f"{message} (x{n})" for message, n in stats.events.items())
-        return result
+        return replace(
+            result,
+            kb_s=stats.kb_s,
+            kb_parts={part: round(s, 6) for part, s in sorted(stats.kb_parts.items())},
+            types_activated=stats.types_activated,
+            points_activated=stats.points_activated,
+            types_active=stats.types_active,
+            types_prematched=stats.prematched,
+            points_posted=session.points_posted,
+            suggestions=stats.suggestions,
+            local_suggestions=stats.local_suggestions,
+            model_fetches=stats.model_fetches,
+            kb_errors=stats.errors + session.poster.failed,
+            kb=request.kb,
+            run=session.run,
+            notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],
+        )
 
 
 def _search(
+    request: PlanRequest,
     world: BindingWorld,
-    method: str,
-    seed: int,
     sampler: Any,
     session: Any,
     started: float,
-    max_rollouts: int,
-    stop_at_first: bool,
     progress: Callable[[Progress], None] | None,
 ) -> PlanResult:
     def report(p: SearchProgress) -> None:
@@ -304,7 +279,7 @@ def _search(
         progress(
             Progress(
                 rollouts=p.rollouts,
-                max_rollouts=max_rollouts,
+                max_rollouts=request.max_rollouts,
                 best_depth=p.best_depth,
                 solved=p.solved,
                 types_active=stats.types_active if stats else 0,
@@ -313,12 +288,13 @@ def _search(
             )
         )
 
-    search = PWUCT(world, sampler, seed=seed, observer=session)
-    outcome = search.run(max_rollouts, stop_at_first=stop_at_first, progress=report)
+    config = request.config.search
+    search = PWUCT(world, sampler, seed=request.seed, config=config, observer=session)
+    outcome = search.run(request.max_rollouts, stop_at_first=request.stop_at_first, progress=report)
     return PlanResult(
         task=world.name,
-        method=method,
-        seed=seed,
+        method=request.method,
+        seed=request.seed,
         solved=outcome.solved,
         rollouts=outcome.rollouts,
         rollouts_spent=outcome.rollouts_spent,
@@ -329,4 +305,5 @@ def _search(
         bindings=outcome.bindings,
         best_depth=outcome.best_depth,
         notes=["search space exhausted"] if outcome.exhausted else [],
+        config=request.config.to_dict(),
     )

@@ -13,6 +13,8 @@ from pathlib import Path
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from surrogate.config import SurrogateConfig
+
 DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
 DEFAULT_PORT = 8000
 
@@ -49,15 +51,14 @@ class Settings(BaseSettings):
     # Disabled, the service stores and serves points only (suggest / predict answer 503).
     surrogate_enabled: bool = True
     surrogate_fit_process: bool = True
-    surrogate_max_inducing: int = Field(default=128, ge=8, le=1024)
+    surrogate_max_inducing: int = Field(default=SurrogateConfig.max_inducing, ge=8, le=1024)
     # A type in use loads its new points when they are older than this (one indexed query).
-    surrogate_refresh_s: float = Field(default=0.5, ge=0)
-    surrogate_pending_ttl_s: float = Field(default=30.0, ge=0)
-    surrogate_prefit_types: int = Field(default=16, ge=0)
-    surrogate_pop_size: int = Field(default=24, ge=4, le=1000)
-    surrogate_generations: int = Field(default=2, ge=0, le=1000)
-    surrogate_raw_samples: int = Field(default=256, ge=1, le=100_000)
-    # Suggest answers the most spread point within this fraction of the best MPF (0: the argmax).
-    surrogate_mpf_margin: float = Field(default=0.1, ge=0.0, le=1.0)
-    # ... or within this much of it (absolute P(feasible)): where every value is tiny, spread.
-    surrogate_mpf_margin_abs: float = Field(default=0.025, ge=0.0, le=1.0)
+    surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)
+    surrogate_pending_ttl_s: float = Field(default=SurrogateConfig.pending_ttl_s, ge=0)
+    surrogate_prefit_types: int = Field(default=SurrogateConfig.prefit_types, ge=0)
+    surrogate_pop_size: int = Field(default=SurrogateConfig.pop_size, ge=4, le=1000)
+    surrogate_generations: int = Field(default=SurrogateConfig.generations, ge=0, le=1000)
+    surrogate_raw_samples: int = Field(default=SurrogateConfig.raw_samples, ge=1, le=100_000)
+    # The MPF answer's spread: see surrogate.config.SurrogateConfig.
+    surrogate_mpf_margin: float = Field(default=SurrogateConfig.mpf_margin, ge=0.0, le=1.0)
+    surrogate_mpf_margin_abs: float = Field(default=SurrogateConfig.mpf_margin_abs, ge=0.0, le=1.0)

@@ -11,30 +11,44 @@ snapshot cache, task-local GP-UCB) read the wire models into them at their edges
     suggestion = maximize(mpf, space, fixed=fixed, exclude=exclude, seed=0)
     answer = suggest(model_source, SuggestRequest(...), pending_book, key=kb, config=config)
 
-
     reg = fit_regression(encoder.encode_points(children), rewards, seed=0)
     suggestion = maximize(UCB.build(reg.predictor, space, beta=2.0, fixed=fixed), space, ...)
 """
 
-from surrogate.acquisition import MPF, UCB, Acquisition, ConstraintTerm, ucb
-from surrogate.encoding import Columns, EncodingError, SpaceEncoder, same_domain
-from surrogate.models import (
-    Fit,
-    PriorPredictor,
-    RegressionPredictor,
-    VGPPredictor,
-    fit_classifier,
-    fit_label_regression,
-    fit_regression,
-    warm_up,
-)
-from surrogate.optimize import (
-    OptimizerConfig,
-    SpaceExhausted,
-    Suggestion,
-    maximize,
-    space_filling,
-)
+from importlib import import_module
+from typing import Any
+
+_HOMES = {
+    "surrogate.acquisition": ("MPF", "UCB", "Acquisition", "ConstraintTerm", "ucb"),
+    "surrogate.encoding": ("Columns", "EncodingError", "SpaceEncoder", "same_domain"),
+    "surrogate.models": (
+        "Fit",
+        "PriorPredictor",
+        "RegressionPredictor",
+        "VGPPredictor",
+        "fit_classifier",
+        "fit_label_regression",
+        "fit_regression",
+        "warm_up",
+    ),
+    "surrogate.optimize": (
+        "OptimizerConfig",
+        "SpaceExhausted",
+        "Suggestion",
+        "maximize",
+        "space_filling",
+    ),
+}
+_HOME = {name: module for module, names in _HOMES.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    """The names above load their module on first use: `surrogate.config`, which the service's
+    settings read, must not pull torch into every command."""
+    if name not in _HOME:
+        raise AttributeError(f"module 'surrogate' has no attribute {name!r}")
+    return getattr(import_module(_HOME[name]), name)
+
 
 __all__ = [
     "MPF",

@@ -28,15 +28,11 @@ from imblearn.over_sampling import SMOTE
 from scipy.special import ndtr
 from sklearn.cluster import KMeans
 
+from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
 
 MIN_POINTS = 4
-MAX_INDUCING = 128
 JITTER = 1e-6
-PRIOR_WEIGHT = 0.45  # how far the distance prior moves p away from 0.5 at an observed point
-PRIOR_LENGTHSCALE = 0.1  # per sqrt(D): the prior's reach in the unit cube
-RECENT_WEIGHT = 0.5  # how far a point not yet fitted moves p toward its label, at the point
-RECENT_LENGTHSCALE = 0.05  # per sqrt(D): its reach (half the prior's: a fit will follow)
 
 
 class FeasibilityPredictor(Protocol):
@@ -49,19 +45,22 @@ class FeasibilityPredictor(Protocol):
 class PriorPredictor:
     """The stated prior for a type with one class only or fewer than MIN_POINTS points.
 
-    p(x) = 0.5 + PRIOR_WEIGHT * (max_j k(x, feasible_j) - max_j k(x, infeasible_j)), with a squared
-    exponential k of lengthscale PRIOR_LENGTHSCALE * sqrt(D): 0.5 far from any data, low next to
+    p(x) = 0.5 + weight * (max_j k(x, feasible_j) - max_j k(x, infeasible_j)), with a squared
+    exponential k of lengthscale `lengthscale * sqrt(D)`: 0.5 far from any data, low next to
     a known infeasible point, high next to a known feasible one.
     """
 
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
+    weight: float = SurrogateConfig.prior_weight
+    lengthscale: float = SurrogateConfig.prior_lengthscale
 
     def proba(self, z: np.ndarray) -> np.ndarray:
-        return 0.5 + PRIOR_WEIGHT * (_reach(z, self.feasible) - _reach(z, self.infeasible))
+        ell = self.lengthscale
+        return 0.5 + self.weight * (_reach(z, self.feasible, ell) - _reach(z, self.infeasible, ell))
 
 
-def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float = PRIOR_LENGTHSCALE) -> np.ndarray:
+def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     """`(n,)` the largest squared-exponential similarity of each row of `z` to `points`, with
     lengthscale `lengthscale * sqrt(D)`; 0 with no points."""
     if len(points) == 0:
@@ -81,11 +80,13 @@ class RecentPoints:
     base: FeasibilityPredictor
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
+    weight: float = SurrogateConfig.recent_weight
+    lengthscale: float = SurrogateConfig.recent_lengthscale
 
     def proba(self, z: np.ndarray) -> np.ndarray:
         p = self.base.proba(z)
-        up = RECENT_WEIGHT * _reach(z, self.feasible, RECENT_LENGTHSCALE)
-        down = RECENT_WEIGHT * _reach(z, self.infeasible, RECENT_LENGTHSCALE)
+        up = self.weight * _reach(z, self.feasible, self.lengthscale)
+        down = self.weight * _reach(z, self.infeasible, self.lengthscale)
         return p + (1.0 - p) * up * (1.0 - down) - p * down * (1.0 - up)
 
 
@@ -273,7 +274,7 @@ def fit_classifier(
     *,
     seed: int = 0,
     warm: Fit | None = None,
-    max_inducing: int = MAX_INDUCING,
+    max_inducing: int = SurrogateConfig.max_inducing,
     max_iters: int = 100,
     lr: float = 0.1,
 ) -> Fit:

@@ -36,6 +36,7 @@ from scipy.stats import qmc
 
 from surrogate.acquisition import Acquisition
 from surrogate.avoid import AvoidSet
+from surrogate.config import SurrogateConfig
 from surrogate.domains import CategoricalDomain, Domain, Value
 from surrogate.encoding import Columns, value_column
 
@@ -49,9 +50,9 @@ class OptimizerConfig:
     """NSGA-II settings. The authors used pop 100 x 100 generations (`authors()`); the default is
     cut to what `benchmarks/synthetic_cpbo.py` measured to reach the same acquisition values."""
 
-    pop_size: int = 24
-    n_gen: int = 2  # generations, the first being the start population (0: raw samples only)
-    raw_samples: int = 256
+    pop_size: int = SurrogateConfig.pop_size
+    n_gen: int = SurrogateConfig.generations
+    raw_samples: int = SurrogateConfig.raw_samples
     margin: float = 0.0  # > 0: the most spread candidate within this fraction of the best value
     margin_abs: float = 0.0  # ... or within this much of it: near-equal tiny P(feasible) ties
     sbx_eta: float = 15.0

@@ -6,9 +6,10 @@ import contextlib
 import functools
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.table import Table
@@ -37,14 +38,19 @@ class BenchSettings:
     time_limit_s: float | None = None
     summary_only: bool = False
     quiet: bool = False
+    config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
 
 
-def plan_run(task: str, method: str, seed: int, **kwargs: object) -> object:
-    """The real planner run (the bench's default run function), with every sampler registered."""
+def plan_run(
+    task: str, method: str, seed: int, config: Mapping[str, Any] | None = None, **kwargs: Any
+) -> object:
+    """The real planner run (the bench's default run function), with every sampler registered;
+    `config`: the dotted overrides of the planner's knobs."""
     import planner.search.samplers.optuna_tpe  # noqa: F401 - registers `optuna-tpe`
+    from planner.config import PlanConfig
     from planner.run import run_plan
 
-    return run_plan(task, method, seed, **kwargs)
+    return run_plan(task, method, seed, config=PlanConfig().with_overrides(config or {}), **kwargs)
 
 
 def known_methods() -> set[str]:
@@ -153,6 +159,7 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
             kb_service=kbs,
             time_limit_s=settings.time_limit_s,
             progress=None if settings.quiet else RichProgress(console),
+            config=settings.config,
         )
 
 

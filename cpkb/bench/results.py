@@ -3,8 +3,9 @@
 `runs.jsonl` gets one line per finished run, flushed and fsynced as it lands, so a bench
 killed at any moment keeps every run it finished and a rerun skips them. Runs that raised
 go to `errors.jsonl` and are retried by a rerun. `bench.json` pins the settings that make
-results comparable (the rollout caps); a rerun with other caps is refused. A `runs.jsonl.xz`
-or `.gz` beside it (how finished runs are kept in the repository) is read as finished runs too.
+results comparable (the rollout caps, the planner knobs set); a rerun with others is refused.
+A `runs.jsonl.xz` or `.gz` beside it (how finished runs are kept in the repository) is read as
+finished runs too.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ RUNS_FILE = "runs.jsonl"
 COMPRESSED_RUNS_FILES = ("runs.jsonl.xz", "runs.jsonl.gz")
 ERRORS_FILE = "errors.jsonl"
 CONFIG_FILE = "bench.json"
+PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}}
+"""A setting a directory made before it was pinned holds at this value."""
 
 
 class BenchConfigError(ValueError):
@@ -61,7 +64,11 @@ class ResultStore:
         self.out_dir.mkdir(parents=True, exist_ok=True)
         if self.config_path.exists():
             stored = json.loads(self.config_path.read_text(encoding="utf-8"))
-            changed = {k: (stored.get(k), v) for k, v in config.items() if stored.get(k) != v}
+            changed = {
+                k: (old, v)
+                for k, v in config.items()
+                if (old := stored.get(k, PINNED_DEFAULTS.get(k))) != v
+            }
             if changed:
                 diff = ", ".join(
                     f"{k}: {old} here, {new} asked" for k, (old, new) in changed.items()

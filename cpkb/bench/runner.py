@@ -27,7 +27,8 @@ from cpkb.bench.scenarios import TRANSFER_SAMPLER, Scenario
 
 RunFn = Callable[..., Any]
 """`run_fn(task, method, seed, *, max_rollouts, kb_url, kb, quiet, **extra)` -> a result with
-`to_json()` (dict or JSON text) or a mapping, holding at least `solved`, `rollouts`, `wall_s`."""
+`to_json()` (dict or JSON text) or a mapping, holding at least `solved`, `rollouts`, `wall_s`.
+With planner knobs set, `extra` has `config`: their dotted overrides (`planner.config`)."""
 
 REQUIRED_FIELDS = ("solved", "rollouts", "wall_s")
 KB_NAME_MAX = 64
@@ -58,6 +59,7 @@ class Job:
     max_rollouts: int
     predecessor_rollouts: int
     predecessor_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
 
     @property
     def kb_name(self) -> str:
@@ -104,6 +106,8 @@ def _as_dict(result: Any) -> dict[str, Any]:
 def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> dict[str, Any]:
     kb_url = job.kb_service.url if job.kb_service is not None else None
     kb = job.kb_name if job.kb_service is not None else None
+    if job.config:
+        extra = {"config": dict(job.config), **extra}
     result = job.run_fn(
         task,
         method,
@@ -226,8 +230,11 @@ def run_bench(
     kb_service: KbService | None = None,
     time_limit_s: float | None = None,
     progress: Progress | None = None,
+    config: Mapping[str, Any] | None = None,
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
+    `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
+    rollout caps, since results under other knobs are another variant.
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
     recorded; a rerun with the same `out_dir` picks up exactly where this one stopped.
@@ -235,7 +242,13 @@ def run_bench(
     if workers < 1:
         raise ValueError("workers must be at least 1")
     store = ResultStore(out_dir)
-    store.pin_config({"max_rollouts": max_rollouts, "predecessor_rollouts": predecessor_rollouts})
+    store.pin_config(
+        {
+            "max_rollouts": max_rollouts,
+            "predecessor_rollouts": predecessor_rollouts,
+            "config": dict(config or {}),
+        }
+    )
     pending = store.pending(list(scenarios))
     outcome = BenchOutcome(skipped=len(scenarios) - len(pending), remaining=len(pending))
     if not pending:
@@ -250,6 +263,7 @@ def run_bench(
             max_rollouts,
             predecessor_rollouts,
             dict(predecessor_kwargs or {}),
+            dict(config or {}),
         )
         for s in pending
     ]

@@ -7,6 +7,7 @@ import os
 import re
 
 from cpkb.cli import CliError
+from cpkb.cli.config_args import add_config_arguments, config_overrides
 from cpkb.cli.reach import EXIT_STATUS_HELP, probe
 
 DEFAULT_TASKS = "desk,regrasp,pack"
@@ -76,13 +77,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="shipped names, task files, or suite directories (a directory stands for its "
         f"target task files, e.g. one written by `cpkb generate`); default {DEFAULT_TASKS}",
     )
-
     parser.add_argument(
         "--methods",
         type=_csv_list,
         default=_csv_list(DEFAULT_METHODS),
         help="samplers, plus cp-bo-transfer (cp-bo after the task's predecessors, "
-        f"30 rollouts each, in the same knowledge base); default {DEFAULT_METHODS}",
+        "30 rollouts each, in the same knowledge base) and cp-bo-paper (the paper's CP-BO: "
+        f"cp-bo with every extension off); default {DEFAULT_METHODS}",
     )
     parser.add_argument("--seeds", type=_positive_int, default=100, help="seeds per cell")
     parser.add_argument("--first-seed", type=_non_negative_int, default=0)
@@ -116,6 +117,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--summary-only", action="store_true", help="only rebuild the table and plots from OUT"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_config_arguments(parser)
     parser.set_defaults(handler=handle)
 
 
@@ -159,6 +161,7 @@ def handle(args: argparse.Namespace) -> int:
         time_limit_s=args.time_limit,
         summary_only=args.summary_only,
         quiet=args.quiet,
+        config=config_overrides(args),
     )
     try:
         if args.kb_url is not None and not args.summary_only:

@@ -7,9 +7,10 @@ import json
 from typing import Any
 
 from cpkb.cli import CliError
+from cpkb.cli.config_args import add_config_arguments, plan_config
 from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
 
-METHODS = ("quasi-random", "mcts-bo", "cp-bo")
+METHODS = ("quasi-random", "mcts-bo", "cp-bo", "cp-bo-paper")
 
 
 def register(subparsers: Any) -> None:
@@ -44,6 +45,7 @@ def register(subparsers: Any) -> None:
     plan.add_argument("--gui", action="store_true", help="show the PyBullet GUI")
     plan.add_argument("--json", action="store_true", help="print the result as JSON (last line)")
     plan.add_argument("--quiet", action="store_true", help="no progress display")
+    add_config_arguments(plan)
     plan.set_defaults(handler=_plan)
 
     demo = subparsers.add_parser(
@@ -117,6 +119,7 @@ def _configured_token() -> str | None:
 def _plan(args: argparse.Namespace) -> int:
     if args.max_rollouts < 1:
         raise CliError("--max-rollouts must be at least 1")
+    config = plan_config(args)
     token = args.token or _configured_token()
     _check_task(args.task)
     _check_knowledge(args, token)
@@ -131,6 +134,7 @@ def _plan(args: argparse.Namespace) -> int:
         stop_at_first=not args.full_budget,
         gui=args.gui,
         suggest_in=args.suggest_in,
+        config=config,
     )
     result = _run(args, quiet=args.json or args.quiet, **options)
     if args.json:

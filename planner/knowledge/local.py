@@ -8,7 +8,7 @@ code (`surrogate.suggest.suggest`) and optimiser settings as the service: this m
 the refresh policy, serves the snapshots as a `ModelSource`, and reads the wire models into the
 surrogate library's types at its edge. Between fetches the points this planner posted weigh in
 at once (`RecentPoints`), as they would in the service; a model is
-fetched anew once its type has new points and `REFRESH_ROLLOUTS` rollouts have passed, and only
+fetched anew once its type has new points and `refresh_rollouts` rollouts have passed, and only
 if its version changed. Such a refresh runs in the background: the fetch costs 5-80 ms on a busy
 machine (the service encodes every changed fit), and the model in hand, with this planner's own
 points, is good until the next one lands. A type with no model yet is fetched at once, unless
@@ -34,7 +34,9 @@ import numpy as np
 
 from client import models as wire
 from client.models import ModelsOut, SuggestIn, SuggestOut
+from planner.config import KnowledgeConfig
 from surrogate import snapshot
+from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import FeasibilityPredictor, PriorPredictor, RecentPoints
@@ -43,9 +45,6 @@ from surrogate.pending import PendingBook
 from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
 from surrogate.suggest import suggest as suggest_point
 
-REFRESH_ROLLOUTS = 3
-"""Rollouts between two fetches of one type's model (a fit takes longer than a few rollouts)."""
-
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
 
@@ -53,7 +52,7 @@ FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
 def fetch_from(
     source: ModelSource,
     optimizer: OptimizerConfig,
-    pending_ttl_s: float = 30.0,
+    pending_ttl_s: float = SurrogateConfig.pending_ttl_s,
 ) -> FetchFn:
     """A fetch answered in this process from `source` (e.g. `surrogate.sources.InMemoryModels`)
     through the same snapshot form the service sends: the planner's models without a server."""
@@ -122,12 +121,20 @@ class _Fetch:
 
 
 class LocalSurrogates:
-    def __init__(self, fetch: FetchFn, *, background: bool = True) -> None:
+    def __init__(
+        self,
+        fetch: FetchFn,
+        *,
+        background: bool = True,
+        refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
+    ) -> None:
         self._fetch = fetch
+        self.refresh_rollouts = refresh_rollouts
         self._models: dict[str, _Model] = {}
         self._config = OptimizerConfig()
         self._settings_known = False  # `_config` is the service's (a fetch has been answered)
-        self._pending = PendingBook(ttl_s=30.0)
+        # The service's pending lifetime replaces the default with the first fetch.
+        self._pending = PendingBook(ttl_s=SurrogateConfig.pending_ttl_s)
         self.fetches = 0
         self.fetch_s = 0.0  # spent waiting for fetches (not the background ones)
         self._executor = (
@@ -209,7 +216,7 @@ class LocalSurrogates:
         model = self._models[type_id]
         if not model.fetched:
             return stored >= model.born_with  # the service has the type once its batch is in
-        return bool(model.own) and rollout - model.fetched_at >= REFRESH_ROLLOUTS
+        return bool(model.own) and rollout - model.fetched_at >= self.refresh_rollouts
 
     def _ask(self, type_ids: list[str]) -> Callable[[], ModelsOut]:
         """The fetch of these types, to be run here or in the background (it reads nothing of

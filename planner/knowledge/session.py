@@ -32,8 +32,10 @@ from client.models import (
     Source,
     SuggestIn,
     SuggestOut,
+    TypeDetail,
     Value,
 )
+from planner.config import KnowledgeConfig
 from planner.failures import FailureGraph, failure_graph
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
@@ -54,9 +56,11 @@ class KnowledgeClient(Protocol):
         self, kb: str, type_ids: Sequence[str], known: dict[str, str] | None = None
     ) -> ModelsOut: ...
 
+    def get_type(self, kb: str, type_id: str) -> TypeDetail: ...
 
-MATCH_CHUNK = 500  # graphs per types/match request (the contract allows up to 1000)
+
 Key = tuple[int, int, str | None]  # (transition index, call index, culprit body)
+SETTLED = frozenset({"ready", "prior", "error"})  # a type's fit states with no fit under way
 
 
 @dataclass(frozen=True)
@@ -101,6 +105,12 @@ class KnowledgeStats:
             self.events[message] = self.events.get(message, 0) + 1
 
 
+def _settled(detail: TypeDetail) -> bool:
+    """The type's fit holds every point the service has of it."""
+    state = detail.surrogate
+    return state is not None and state.status in SETTLED and state.n_fitted == detail.n_points
+
+
 @lru_cache(maxsize=16)
 def _task_graphs(skeleton: str, square_bodies: frozenset[str]) -> dict[Key, FailureGraph]:
     """The failure graphs of one skeleton (by its repr) and set of square bodies, shared by the
@@ -122,8 +132,11 @@ class KnowledgeSession:
         background: bool = True,
         lookahead: bool = True,
         local: bool = True,
+        config: KnowledgeConfig | None = None,
     ) -> None:
         self.client = client
+        self.config = config if config is not None else KnowledgeConfig()
+        background = background and not self.config.deterministic
         self.lookahead = lookahead
         self.kb = kb
         self.world = world
@@ -139,7 +152,11 @@ class KnowledgeSession:
         self._by_check: dict[tuple[int, int], list[tuple[Key, Activation]]] = {}
         self._pending: list[tuple[Key, FailureGraph, dict[str, Value], bool]] = []
         self.local = (
-            LocalSurrogates(lambda ids, known: client.models(kb, ids, known), background=background)
+            LocalSurrogates(
+                lambda ids, known: client.models(kb, ids, known),
+                background=background,
+                refresh_rollouts=self.config.refresh_rollouts,
+            )
             if local and hasattr(client, "models")
             else None
         )
@@ -184,10 +201,9 @@ class KnowledgeSession:
         started = time.perf_counter()
         try:
             results: list[MatchResult | None] = []
-            for start in range(0, len(graphs), MATCH_CHUNK):
-                results.extend(
-                    self.client.match_types(self.kb, graphs[start : start + MATCH_CHUNK])
-                )
+            chunk = self.config.match_chunk
+            for start in range(0, len(graphs), chunk):
+                results.extend(self.client.match_types(self.kb, graphs[start : start + chunk]))
         except BadRequest:
             results = [self._match_one(graph) for graph in graphs]
         except Exception as exc:  # a knowledge-base outage must not stop the search
@@ -274,7 +290,30 @@ class KnowledgeSession:
             for key, _, x, feasible in self._pending:
                 if key in self._active:
                     self.local.note(self._active[key].type_id, x, feasible, batch)
+        if self.config.deterministic:
+            self._wait_for_fits(
+                {self._active[k].type_id for k, *_ in self._pending if k in self._active}
+            )
         self._pending = []
+
+    def _wait_for_fits(self, type_ids: set[str]) -> None:
+        """Block until the service has fitted every point of these types (deterministic mode):
+        which fit a later suggestion sees, and what each fit starts warm from, then no longer
+        depend on timing."""
+        started = time.perf_counter()
+        try:
+            waiting = set(type_ids)
+            while waiting:
+                waiting = {t for t in waiting if not _settled(self.client.get_type(self.kb, t))}
+                if waiting and time.perf_counter() - started > self.config.fit_wait_s:
+                    self.stats.event("a fit took longer than knowledge.fit_wait_s")
+                    return
+                if waiting:
+                    time.sleep(0.01)
+        except Exception as exc:  # a knowledge-base outage must not stop the search
+            self.stats.event(f"waiting for a fit failed: {exc}")
+        finally:
+            self.stats.spent("fit", time.perf_counter() - started)
 
     # -- guiding the search -------------------------------------------------------------------
 

@@ -10,7 +10,7 @@ world's detail `progress`, e.g. how close IK came), backed up by max the same wa
 it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
-(`tree.OUTLOOK_RATIO`).
+(`SearchConfig.outlook_ratio`; each rule has its switch).
 """
 
 from __future__ import annotations
@@ -24,12 +24,9 @@ from typing import Protocol
 import numpy as np
 
 from client.models import Value
+from planner.config import SearchConfig
 from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
-    HOPELESS_RATIO,
-    OUTLOOK_RATIO,
-    PW_K,
-    UCB_C,
     ChildNode,
     DecisionNode,
     add_child,
@@ -87,19 +84,13 @@ class PWUCT:
         sampler: Sampler,
         *,
         seed: int,
-        k: float = PW_K,
-        c: float = UCB_C,
+        config: SearchConfig | None = None,
         observer: SearchObserver | None = None,
-        hopeless_ratio: float = HOPELESS_RATIO,
-        outlook_ratio: float = OUTLOOK_RATIO,
     ) -> None:
         check_alternating(world.skeleton)
-        self.hopeless_ratio = hopeless_ratio
-        self.outlook_ratio = outlook_ratio
+        self.config = config if config is not None else SearchConfig()
         self.world = world
         self.sampler = sampler
-        self.k = k
-        self.c = c
         self.observer = observer
         self.rng = np.random.default_rng(seed)
         self.decisions = world.skeleton.decisions
@@ -152,12 +143,12 @@ class PWUCT:
         node = self.root
         while True:
             node.visits += 1
-            if widens(node, self.k):
+            if widens(node, self.config.pw_k):
                 child = self._expand(node)
             elif (untried := self._better_untried(node)) is not None:
                 child = self._expand(node, untried)
             else:
-                selected = ucb_select(node, self.c, self.outlook_ratio)
+                selected = ucb_select(node, self.config)
                 if selected is None:
                     return None
                 child = selected
@@ -214,14 +205,16 @@ class PWUCT:
 
     def _better_untried(self, node: DecisionNode) -> Proposal | None:
         """The sampler's best untried value, if the knowledge base rates it `outlook_ratio`
-        times above every open child's outlook (see `tree.OUTLOOK_RATIO`)."""
-        best = comparable_outlook(node)
+        times above every open child's outlook (see `SearchConfig.outlook_widening`)."""
+        if not self.config.outlook_widening:
+            return None
+        best = comparable_outlook(node, self.config.outlook_prior_weight)
         if best is None:
             return None
         started = time.perf_counter()
         proposal = self.sampler.propose_untried(self._context(node))
         self.sample_s += time.perf_counter() - started
-        if proposal is None or proposal.p_feasible <= self.outlook_ratio * best:
+        if proposal is None or proposal.p_feasible <= self.config.outlook_ratio * best:
             return None
         return proposal
 
@@ -233,7 +226,7 @@ class PWUCT:
         value = proposal
         if isinstance(proposal, Proposal):
             value = proposal.value
-            note_proposal(node, proposal.p_feasible, self.hopeless_ratio)
+            note_proposal(node, proposal.p_feasible, self.config)
         if node.n_choices is not None and value in ctx.siblings:
             raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

@@ -15,34 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from client.models import CategoricalDomain, Value
+from planner.config import SearchConfig
 from planner.skeleton import DecisionVar, Skeleton
 from planner.world import TransitionOutcome
-
-PW_K = 13.5
-UCB_C = 0.1
-HOPELESS_RATIO = 0.6
-"""A node is hopeless (see `samplers.base.Proposal`) while its best proposal is less likely to be
-feasible than this fraction of its first one: the knowledge base has since learned that little
-here works. The threshold is relative because a type's base rate sets the scale (a well-fitted
-type with few feasible points never predicts much above its base rate anywhere)."""
-HOPELESS_MIN_CHILDREN = 8
-"""Only a node with this many children can be hopeless: a refit that lowers every prediction
-at once must not let every parent widen at every visit."""
-OUTLOOK_RATIO = 1.25
-"""At a node whose open children the knowledge base has rated (the P(feasible) of each child's
-latest proposal below it, its *outlook*), an untried value that is this many times as likely to
-be feasible as the best outlook opens at once instead of waiting for the PW law, and UCB selects
-only among children within this factor of the best outlook: a grasp that no placement can
-follow, or a box placed where the next box has no room, loses the search to a value that the
-knowledge base expects to work."""
-OUTLOOK_FREE_EVERY = 4
-"""Every this many visits a node selects by plain UCB, whatever the outlooks: completeness."""
-OUTLOOK_PRIOR_WEIGHT = 4.0
-"""A child's outlook is the knowledge base's P(feasible) below it taken as a Beta prior worth
-this many rollouts, updated by the rollouts that went through the child and failed:
-`w p / (w + failures)`. The knowledge base learns a failure only where it happened (until a refit
-spreads it), so a grasp that no placement follows kept its rating for 13-56 of desk's rollouts;
-counted failures make the search leave it once another child's evidence is better."""
 
 
 @dataclass(eq=False)
@@ -135,14 +110,16 @@ def mark_hopeless(node: DecisionNode, hopeless: bool) -> None:
         node.parent.parent.n_hopeless += 1 if hopeless else -1
 
 
-def note_proposal(node: DecisionNode, p_feasible: float, ratio: float = HOPELESS_RATIO) -> None:
-    """Update `node`'s hopeless flag from the knowledge base's P(feasible) of its latest proposal,
-    measured against the first one made at this node."""
+def note_proposal(node: DecisionNode, p_feasible: float, config: SearchConfig) -> None:
+    """Keep the knowledge base's P(feasible) of `node`'s latest proposal (its outlook) and update
+    its hopeless flag from it, measured against the first one made at this node."""
     if node.first_p_feasible is None:
         node.first_p_feasible = p_feasible
     node.last_p_feasible = p_feasible
-    tried = len(node.children) >= HOPELESS_MIN_CHILDREN
-    mark_hopeless(node, tried and p_feasible < ratio * node.first_p_feasible)
+    if not config.hopeless_widening:
+        return
+    tried = len(node.children) >= config.hopeless_min_children
+    mark_hopeless(node, tried and p_feasible < config.hopeless_ratio * node.first_p_feasible)
 
 
 def close(child: ChildNode) -> None:
@@ -158,7 +135,7 @@ def close(child: ChildNode) -> None:
         current = parent.parent if parent.closed else None
 
 
-def widens(node: DecisionNode, k: float = PW_K) -> bool:
+def widens(node: DecisionNode, k: float) -> bool:
     """The PW law: a new child when N > k |C|^2, or when every child is closed or hopeless;
     never beyond a categorical decision's number of choices."""
     n_children = len(node.children)
@@ -170,59 +147,58 @@ def widens(node: DecisionNode, k: float = PW_K) -> bool:
     return node.visits > k * n_children**2
 
 
-def child_outlook(child: ChildNode) -> float | None:
+def child_outlook(child: ChildNode, prior_weight: float) -> float | None:
     """The knowledge base's view below `child` after the failures through it (see
-    `OUTLOOK_PRIOR_WEIGHT`); None if it has not rated the node below."""
+    `SearchConfig.outlook_prior_weight`); None if it has not rated the node below."""
     p = child.next.last_p_feasible if child.next is not None else None
     if p is None or child.parent.n_choices is None:
         return p
     failures = 0 if child.success else child.visits
-    return OUTLOOK_PRIOR_WEIGHT * p / (OUTLOOK_PRIOR_WEIGHT + failures)
+    return prior_weight * p / (prior_weight + failures)
 
 
-def outlook(node: DecisionNode) -> float | None:
+def outlook(node: DecisionNode, prior_weight: float) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
     best: float | None = None
     for child in node.children:
         if child.closed:
             continue
-        p = child_outlook(child)
+        p = child_outlook(child, prior_weight)
         if p is None:
             return None
         best = p if best is None else max(best, p)
     return best
 
 
-def comparable_outlook(node: DecisionNode) -> float | None:
+def comparable_outlook(node: DecisionNode, prior_weight: float) -> float | None:
     """The outlook an untried value of `node` is compared with: None unless values are left
     and every open child is rated."""
-    return None if node.exhausted else outlook(node)
+    return None if node.exhausted else outlook(node, prior_weight)
 
 
-def ucb_select(
-    node: DecisionNode, c: float = UCB_C, outlook_ratio: float | None = None
-) -> ChildNode | None:
+def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     """The open child maximising `reward + c sqrt(ln N / n)`; None when all are closed.
-    With `outlook_ratio`, a node whose open children are all rated selects only among those
-    within that factor of the best outlook, except at every `OUTLOOK_FREE_EVERY`-th visit: a
+    With `outlook_selection`, a node whose open children are all rated selects only among those
+    within `outlook_ratio` of the best outlook, except at every `outlook_free_every`-th visit: a
     subtree whose outlook stays high while it keeps failing (a failure the knowledge base does
     not model, or a model that does not learn it) must not keep the others from being reached.
     Ties go to the earliest child, so selection is deterministic."""
     best: ChildNode | None = None
     best_score = -math.inf
     log_n = math.log(max(node.visits, 1))
-    guided = outlook_ratio and node.visits % OUTLOOK_FREE_EVERY != 0
-    best_outlook = outlook(node) if guided else None
+    weight, ratio = config.outlook_prior_weight, config.outlook_ratio
+    guided = config.outlook_selection and node.visits % config.outlook_free_every != 0
+    best_outlook = outlook(node, weight) if guided else None
     for child in node.children:
         if child.closed:
             continue
-        if best_outlook is not None and outlook_ratio is not None:
-            rated = child_outlook(child)
+        if best_outlook is not None:
+            rated = child_outlook(child, weight)
             assert rated is not None
-            if rated * outlook_ratio < best_outlook:
+            if rated * ratio < best_outlook:
                 continue
-        score = child.reward + c * math.sqrt(log_n / max(child.visits, 1))
+        score = child.reward + config.ucb_c * math.sqrt(log_n / max(child.visits, 1))
         if score > best_score:
             best, best_score = child, score
     return best

@@ -1,8 +1,9 @@
 """Node-expansion samplers behind one interface, found by method name.
 
 `register(method, factory)` adds a sampler; `make(method, ...)` builds one. A factory takes
-`seed`, `world` and `knowledge` (a `KnowledgeSession` for methods that use the knowledge base,
-else None) as keywords and returns a `Sampler`.
+`seed`, `world`, `knowledge` (a `KnowledgeSession` for methods that use the knowledge base,
+else None) and `config` (the run's `PlanConfig`) as keywords and returns a `Sampler`. A preset
+method (`planner.config.PRESETS`) is its base method's sampler under the preset's configuration.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from planner.config import PRESETS, PlanConfig, base_method, method_config
 from planner.search.samplers.base import SampleContext, Sampler
 
 SamplerFactory = Callable[..., Sampler]
@@ -29,20 +31,31 @@ def _load_builtins() -> None:
 
 
 def methods() -> list[str]:
+    """Every method: the registered samplers and the presets of registered ones."""
     _load_builtins()
-    return sorted(_FACTORIES)
+    return sorted({*_FACTORIES, *(m for m, p in PRESETS.items() if p.base in _FACTORIES)})
 
 
 def uses_knowledge(method: str) -> bool:
     _load_builtins()
-    return method in _USES_KNOWLEDGE
+    return base_method(method) in _USES_KNOWLEDGE
 
 
-def make(method: str, *, seed: int, world: Any, knowledge: Any = None) -> Sampler:
-    _load_builtins()
-    if method not in _FACTORIES:
-        raise KeyError(f"unknown method {method!r}; known: {', '.join(sorted(_FACTORIES))}")
-    return _FACTORIES[method](seed=seed, world=world, knowledge=knowledge)
+def make(
+    method: str,
+    *,
+    seed: int,
+    world: Any,
+    knowledge: Any = None,
+    config: PlanConfig | None = None,
+) -> Sampler:
+    """The method's sampler under `config` (with a preset's switches applied)."""
+    if method not in methods():
+        raise KeyError(f"unknown method {method!r}; known: {', '.join(methods())}")
+    factory = _FACTORIES[base_method(method)]
+    return factory(
+        seed=seed, world=world, knowledge=knowledge, config=method_config(method, config)
+    )
 
 
 __all__ = ["SampleContext", "Sampler", "make", "methods", "register", "uses_knowledge"]

@@ -53,7 +53,7 @@ class Sampler(Protocol):
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
         """At a node that the PW law keeps from widening: the best untried value with its
         P(feasible), or None for a sampler without that view. The tree opens it when it beats
-        every open child's outlook (`tree.OUTLOOK_RATIO`)."""
+        every open child's outlook (`SearchConfig.outlook_ratio`)."""
         ...
 
     def close(self) -> None:

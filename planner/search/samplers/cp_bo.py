@@ -10,6 +10,9 @@ A looked-ahead answer is a whole continuation: the later decisions that make thi
 A node that the continuation leads to (a new child's decision, with the values above it) takes
 its first value from it instead of asking, as long as its own constraints are among those the
 answer weighed: a fresh descent costs one suggestion, not one per decision.
+
+Each of these extensions of the paper's sampler has its switch in `CpBoConfig`; `cp-bo-paper`
+(`planner.config.PRESETS`) is this sampler with all of them off.
 """
 
 from __future__ import annotations
@@ -17,17 +20,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from client.models import CategoricalDomain, Constraint, Value
+from planner.config import CpBoConfig, PlanConfig, QuasiRandomConfig
 from planner.knowledge import KnowledgeSession
 from planner.search.samplers import register
 from planner.search.samplers.base import Proposal, SampleContext
 from planner.search.samplers.quasi_random import space_filling
-
-BATCH = 4
-"""Points per suggestion request: a node's next expansions come from one answer. A fit takes
-longer than a few rollouts, so successive requests would mostly see the same model; the batch
-is spread like successive answers would be, and costs one request instead of `BATCH`."""
-BATCH_MAX_AGE = 8
-"""Rollouts after which a node's batch is asked for anew, so that it follows the refits."""
 
 NodeKey = tuple[str, tuple[tuple[str, object], ...]]
 Signature = tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # the node's (type, bind) pairs
@@ -52,9 +49,15 @@ class _Continuation:
 class CpBoSampler:
     name = "cp-bo"
 
-    def __init__(self, knowledge: KnowledgeSession, batch: int = BATCH) -> None:
+    def __init__(
+        self,
+        knowledge: KnowledgeSession,
+        config: CpBoConfig | None = None,
+        fallback: QuasiRandomConfig | None = None,
+    ) -> None:
         self.knowledge = knowledge
-        self.batch = batch
+        self.config = config if config is not None else CpBoConfig()
+        self.fallback = fallback if fallback is not None else QuasiRandomConfig()
         self.guided = 0
         self.unguided = 0
         self._batches: dict[NodeKey, _Batch] = {}
@@ -72,7 +75,7 @@ class CpBoSampler:
             self.guided += 1
             return batch.proposals.pop(0)
         self.unguided += 1
-        return space_filling(ctx)
+        return space_filling(ctx, self.fallback.candidates_per_dim)
 
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
         """The next point of this node's batch, left in it: the best untried value the
@@ -82,7 +85,7 @@ class CpBoSampler:
 
     def _batch(self, ctx: SampleContext) -> _Batch | None:
         """This node's batch without the points since tried; asked anew when it is used up,
-        older than `BATCH_MAX_AGE` rollouts, or the node's constraints changed (a type became
+        older than `batch_max_age` rollouts, or the node's constraints changed (a type became
         active here or on the later decisions it looks ahead to: a batch that kept its points
         when only a later type was new cost regrasp and pack transfer a quarter more rollouts,
         `benchmarks/results/paper7R`). None where no type is active or the service cannot
@@ -101,7 +104,7 @@ class CpBoSampler:
             cached is None
             or cached.constraints != signature
             or not cached.proposals
-            or ctx.rollout - cached.rollout > BATCH_MAX_AGE
+            or ctx.rollout - cached.rollout > self.config.batch_max_age
         ):
             cached = self._ask(ctx, constraints, signature)
             if cached is None:
@@ -117,7 +120,7 @@ class CpBoSampler:
     ) -> _Batch | None:
         seed = int(ctx.rng.integers(2**31 - 1))
         answer = self.knowledge.suggest(
-            ctx.var, ctx.path, ctx.siblings, constraints, seed, n=self.batch
+            ctx.var, ctx.path, ctx.siblings, constraints, seed, n=self.config.batch
         )
         if answer is None:
             return None
@@ -127,9 +130,10 @@ class CpBoSampler:
             for point in points
             if (value := point.x.get(ctx.var.var)) is not None and _valid(value, ctx)
         ]
-        weighed = frozenset(signature)
-        for point in points:
-            self._remember_continuation(ctx, point.x, point.mpf, weighed)
+        if self.config.continuations:
+            weighed = frozenset(signature)
+            for point in points:
+                self._remember_continuation(ctx, point.x, point.mpf, weighed)
         return _Batch(signature, proposals, ctx.rollout)
 
     def _remember_continuation(
@@ -157,7 +161,7 @@ class CpBoSampler:
         if (
             continuation is None
             or not set(signature) <= continuation.weighed
-            or ctx.rollout - continuation.rollout > BATCH_MAX_AGE
+            or ctx.rollout - continuation.rollout > self.config.batch_max_age
         ):
             return None
         return _Batch(signature, [continuation.proposal], continuation.rollout)
@@ -187,10 +191,12 @@ def _valid(value: Value, ctx: SampleContext) -> bool:
     )
 
 
-def _factory(*, knowledge: KnowledgeSession | None = None, **_: object) -> CpBoSampler:
+def _factory(
+    *, config: PlanConfig, knowledge: KnowledgeSession | None = None, **_: object
+) -> CpBoSampler:
     if knowledge is None:
         raise ValueError("cp-bo needs a knowledge session")
-    return CpBoSampler(knowledge)
+    return CpBoSampler(knowledge, config.cp_bo, config.quasi_random)
 
 
 register("cp-bo", _factory, uses_knowledge=True)

@@ -20,15 +20,10 @@ from optuna.distributions import BaseDistribution, CategoricalDistribution, Floa
 from optuna.trial import Trial, TrialState
 
 from client.models import CategoricalDomain, ContinuousDomain, Value
+from planner.config import OptunaTpeConfig, PlanConfig
 from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import untried_choice
-
-N_STARTUP_TRIALS = 10
-"""Random trials before TPE models a variable (Optuna's default)."""
-
-MAX_CATEGORICAL_ASKS = 8
-"""Asks for an untried choice before falling back to a uniform untried one."""
 
 CONSTRAINT = "transition"
 
@@ -58,7 +53,8 @@ def _key(path: dict[str, Value], value: Value) -> str:
 class OptunaTpeSampler:
     name = "optuna-tpe"
 
-    def __init__(self, *, seed: int, n_layers: int) -> None:
+    def __init__(self, *, seed: int, n_layers: int, config: OptunaTpeConfig | None = None) -> None:
+        self.config = config if config is not None else OptunaTpeConfig()
         self._seed = seed
         self._n_layers = n_layers
         self._studies: dict[str, optuna.Study] = {}
@@ -70,7 +66,7 @@ class OptunaTpeSampler:
                 warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
                 sampler = optuna.samplers.TPESampler(
                     seed=self._seed * 1009 + len(self._studies),
-                    n_startup_trials=N_STARTUP_TRIALS,
+                    n_startup_trials=self.config.n_startup_trials,
                     multivariate=True,
                     constant_liar=False,
                 )
@@ -93,7 +89,7 @@ class OptunaTpeSampler:
         study = self._study(ctx.var.var)
         self._tell_siblings(ctx, study)
         distributions = _distributions(domain)
-        for _ in range(MAX_CATEGORICAL_ASKS):
+        for _ in range(self.config.max_categorical_asks):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
                 trial = study.ask(distributions)
@@ -114,9 +110,10 @@ class OptunaTpeSampler:
         self._pending.clear()
 
 
-def _factory(*, seed: int, world: object, **_: object) -> OptunaTpeSampler:
+def _factory(*, seed: int, world: object, config: PlanConfig, **_: object) -> OptunaTpeSampler:
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    return OptunaTpeSampler(seed=seed, n_layers=len(world.skeleton.layers))  # type: ignore[attr-defined]
+    n_layers = len(world.skeleton.layers)  # type: ignore[attr-defined]
+    return OptunaTpeSampler(seed=seed, n_layers=n_layers, config=config.optuna_tpe)
 
 
 register("optuna-tpe", _factory)

@@ -78,8 +78,11 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
     node's batch without using it up."""
     import numpy as np
 
+    from planner.config import CpBoConfig
     from planner.search.samplers.base import Proposal, SampleContext
-    from planner.search.samplers.cp_bo import BATCH, BATCH_MAX_AGE, CpBoSampler
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    batch, max_age = CpBoConfig().batch, CpBoConfig().batch_max_age
 
     with CpkbClient(live_kb.url) as client:
         world, session = stocked_desk_session(client, live_kb.name)
@@ -87,20 +90,20 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
         pose = world.skeleton.decisions[1]
         siblings: list = []
         rng = np.random.default_rng(0)
-        for expansion in range(BATCH + 1):
+        for expansion in range(batch + 1):
             ctx = SampleContext(pose, {"#dir1": "front"}, tuple(siblings), (), (), 1, 1, rng)
             proposal = sampler.propose(ctx)
             assert isinstance(proposal, Proposal) and 0.0 <= proposal.p_feasible <= 1.0
             assert proposal.value not in siblings and all(0 <= v <= 1 for v in proposal.value)
             siblings.append(proposal.value)
-            assert session.stats.suggestions == (1 if expansion < BATCH else 2)
+            assert session.stats.suggestions == (1 if expansion < batch else 2)
         grasp = world.skeleton.decisions[0]
         ctx = SampleContext(grasp, {}, ("front",), (), (), 0, 1, rng)
         untried = sampler.propose_untried(ctx)
         assert untried is not None and untried.value != "front"
         assert sampler.propose_untried(ctx) == untried == sampler.propose(ctx)
         assert session.stats.suggestions == 3
-        later = SampleContext(grasp, {}, ("front",), (), (), 0, 1 + BATCH_MAX_AGE + 1, rng)
+        later = SampleContext(grasp, {}, ("front",), (), (), 0, 1 + max_age + 1, rng)
         sampler.propose_untried(later)
         assert session.stats.suggestions == 4  # an old batch is asked for anew
         session.close()
@@ -152,7 +155,7 @@ def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_
 
 class _ScriptedKnowledge:
     """The session's side of the sampler, scripted: which types are active at a node, and an
-    answer of `BATCH` grasps (each with a placement) per request."""
+    answer of `n` grasps (each with a placement) per request."""
 
     def __init__(self, skeleton) -> None:
         from planner.knowledge.session import KnowledgeStats
@@ -160,6 +163,7 @@ class _ScriptedKnowledge:
         self.skeleton = skeleton
         self.stats = KnowledgeStats()
         self.active: list = []
+        self.batches: list[int] = []
 
     def constraints_at(self, var, path):
         return [c for c in self.active if var in c.bind.values() or not path]
@@ -168,11 +172,13 @@ class _ScriptedKnowledge:
         from client.models import SuggestedPoint, SuggestOut
 
         self.stats.suggestions += 1
-        left = [c for c in var.domain.choices if c not in siblings][:n]
-        points = [
-            SuggestedPoint(x={var.var: c, "#pose12": [0.5] * 3}, mpf=0.5, p_feasible={})
-            for c in left
-        ]
+        self.batches.append(n)
+        if not hasattr(var.domain, "choices"):  # a placement: points along the diagonal
+            xs = [{var.var: [0.1 * (i + 1)] * 3} for i in range(n)]
+        else:
+            left = [c for c in var.domain.choices if c not in siblings][:n]
+            xs = [{var.var: c, "#pose12": [0.5] * 3} for c in left]
+        points = [SuggestedPoint(x=x, mpf=0.5, p_feasible={}) for x in xs]
         return SuggestOut(x=points[0].x, mpf=0.5, p_feasible={}, batch=points)
 
 
@@ -205,3 +211,107 @@ def test_a_batch_is_asked_anew_for_a_type_on_a_later_decision_it_looks_ahead_to(
     expand()
     assert knowledge.stats.suggestions == 2
     assert len(set(tried)) == 3
+
+
+def test_the_paper_preset_asks_for_one_point_per_expansion_and_keeps_no_continuation():
+    """cp-bo-paper's sampler: every expansion is one suggestion of one point, and a placement
+    under a suggested grasp asks for itself rather than taking the grasp answer's placement."""
+    import numpy as np
+
+    from client.models import Constraint
+    from planner.config import method_config
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import SampleContext
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    grasp, pose = analytic_world("desk").skeleton.decisions
+    knowledge = _ScriptedKnowledge(analytic_world("desk").skeleton)
+    knowledge.active = [Constraint(type_id="both", bind={"#dir": "#dir1", "#pose": "#pose12"})]
+    sampler = CpBoSampler(knowledge, method_config("cp-bo-paper").cp_bo)  # type: ignore[arg-type]
+    rng = np.random.default_rng(0)
+    first = sampler.propose(SampleContext(grasp, {}, (), (), (), 0, 1, rng)).value
+    sampler.propose(SampleContext(grasp, {}, (first,), (), (), 0, 1, rng))
+    assert knowledge.batches == [1, 1]
+    sampler.propose(SampleContext(pose, {grasp.var: first}, (), (), (), 1, 1, rng))
+    assert knowledge.stats.suggestions == 3
+    extended = CpBoSampler(knowledge)  # type: ignore[arg-type]
+    chosen = extended.propose(SampleContext(grasp, {}, (), (), (), 0, 2, rng)).value
+    extended.propose(SampleContext(pose, {grasp.var: chosen}, (), (), (), 1, 2, rng))
+    assert knowledge.batches == [1, 1, 1, 4]  # the placement came from the continuation
+
+
+@pytest.mark.slow
+def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch):
+    """On a knowledge base stocked by deskP, cp-bo prematches, looks ahead, asks for batches and
+    opens untried values by their outlook; cp-bo-paper does none of that, still activates the
+    stored types when it meets their failures, and records its configuration."""
+    from planner.knowledge import KnowledgeSession
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    common = {"kb_url": live_kb.url, "kb": live_kb.name}
+    run_plan("analytic:deskP", "cp-bo", 100, max_rollouts=30, stop_at_first=False, **common)
+    with CpkbClient(live_kb.url) as client:
+        wait_for_fits(client, live_kb.name)
+    seen: dict[str, list] = {"n": [], "ahead": [], "untried": []}
+    suggest, untried = KnowledgeSession.suggest, CpBoSampler.propose_untried
+
+    def spy_suggest(self, var, path, siblings, constraints, seed, *, n=1):
+        seen["n"].append(n)
+        bound = {v for c in constraints for v in c.bind.values()}
+        seen["ahead"].append(bool(bound - set(path) - {var.var}))
+        return suggest(self, var, path, siblings, constraints, seed, n=n)
+
+    def spy_untried(self, ctx):
+        seen["untried"].append(ctx.var.var)
+        return untried(self, ctx)
+
+    monkeypatch.setattr(KnowledgeSession, "suggest", spy_suggest)
+    monkeypatch.setattr(CpBoSampler, "propose_untried", spy_untried)
+
+    def run(method: str):
+        for part in seen.values():
+            part.clear()
+        result = run_plan(
+            "analytic:desk", method, 3, max_rollouts=60, stop_at_first=False, **common
+        )
+        return result, {k: list(v) for k, v in seen.items()}
+
+    extended, used = run("cp-bo")
+    assert extended.types_prematched >= 1
+    assert 4 in used["n"] and any(used["ahead"]) and used["untried"]
+    paper, used = run("cp-bo-paper")
+    assert paper.types_prematched == 0 and paper.types_activated >= 1
+    assert used["n"] and set(used["n"]) == {1} and not any(used["ahead"]) and not used["untried"]
+    assert paper.config["cp_bo"] == {
+        "batch": 1,
+        "batch_max_age": extended.config["cp_bo"]["batch_max_age"],
+        "lookahead": False,
+        "continuations": False,
+        "prematch": False,
+    }
+    search = paper.config["search"]
+    assert not (search["outlook_widening"] or search["outlook_selection"])
+    assert not search["hopeless_widening"]
+
+
+@pytest.mark.slow
+def test_deterministic_runs_of_one_seed_on_fresh_knowledge_bases_agree(kb_service):
+    """With every refit waited for, deskP then desk with cp-bo take the same course twice."""
+    from planner.config import PlanConfig
+
+    config = PlanConfig().with_overrides({"knowledge.deterministic": True})
+
+    def chain() -> list[tuple]:
+        common = {"kb_url": kb_service, "kb": f"det-{uuid.uuid4().hex[:8]}", "config": config}
+        learn = run_plan(
+            "analytic:deskP", "cp-bo", 7, max_rollouts=30, stop_at_first=False, **common
+        )
+        target = run_plan("analytic:desk", "cp-bo", 7, max_rollouts=300, **common)
+        assert target.kb_errors == 0 and target.suggestions >= 1, target.notes
+        assert "fit" in target.kb_parts
+        return [
+            (r.rollouts, r.bindings, r.points_posted, r.suggestions, r.types_active)
+            for r in (learn, target)
+        ]
+
+    assert chain() == chain()

@@ -45,6 +45,7 @@ class Recording(QuasiRandomSampler):
     """Quasi-random, keeping every context it was given."""
 
     def __init__(self) -> None:
+        super().__init__()
         self.contexts: list[SampleContext] = []
 
     def propose(self, ctx: SampleContext) -> Value:

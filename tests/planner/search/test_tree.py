@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
 from client.models import CategoricalDomain, ContinuousDomain
+from planner.config import SearchConfig
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_feasible
 from planner.search.samplers.base import Proposal
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from planner.search.tree import (
-    OUTLOOK_PRIOR_WEIGHT,
     ChildNode,
     DecisionNode,
     backup,
@@ -29,6 +30,9 @@ from planner.search.tree import (
 from planner.skeleton import DecisionVar, OperatorCall
 from planner.world import CheckResult, TransitionOutcome
 
+CONFIG = SearchConfig()
+PLAIN = replace(CONFIG, outlook_selection=False)  # plain UCB
+W = CONFIG.outlook_prior_weight
 CALL = OperatorCall("Inv-kin", ("body", "pose0", "#x"))
 PASS = TransitionOutcome((CheckResult(CALL, True),))
 FAIL = TransitionOutcome((CheckResult(CALL, False),))
@@ -58,18 +62,18 @@ def add_child(parent: DecisionNode, value, outcome=PASS, visits=1, r=0.0) -> Chi
 def test_pw_law_opens_a_child_when_visits_exceed_k_children_squared():
     n = node()
     n.visits = 1
-    assert widens(n)
+    assert widens(n, CONFIG.pw_k)
     add_child(n, [0.1])
     n.visits = 13
-    assert not widens(n)
+    assert not widens(n, CONFIG.pw_k)
     n.visits = 14
-    assert widens(n)
+    assert widens(n, CONFIG.pw_k)
     add_child(n, [0.2])
     n.visits = 54
-    assert not widens(n)
+    assert not widens(n, CONFIG.pw_k)
     n.visits = 55
-    assert widens(n)
-    assert not widens(n, k=20.0)
+    assert widens(n, CONFIG.pw_k)
+    assert not widens(n, 20.0)
 
 
 def test_pw_widens_at_once_when_every_child_is_a_dead_end():
@@ -77,8 +81,8 @@ def test_pw_widens_at_once_when_every_child_is_a_dead_end():
     add_child(n, [0.1], FAIL)
     add_child(n, [0.2], FAIL)
     n.visits = 3
-    assert widens(n)
-    assert ucb_select(n) is None
+    assert widens(n, CONFIG.pw_k)
+    assert ucb_select(n, PLAIN) is None
 
 
 def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
@@ -86,13 +90,13 @@ def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
     dead = add_child(n, [0.1], FAIL)
     trapped = add_child(n, [0.2])
     n.visits = 20  # below 13.5 * 2^2
-    assert not widens(n)
+    assert not widens(n, CONFIG.pw_k)
     mark_hopeless(trapped.next, True)
-    assert widens(n) and ucb_select(n) is trapped
+    assert widens(n, CONFIG.pw_k) and ucb_select(n, PLAIN) is trapped
     mark_hopeless(trapped.next, True)  # idempotent
     assert n.n_hopeless == 1
     mark_hopeless(trapped.next, False)
-    assert not widens(n) and n.n_hopeless == 0
+    assert not widens(n, CONFIG.pw_k) and n.n_hopeless == 0
     mark_hopeless(trapped.next, True)
     trapped.next.var = CATEGORICAL_AB
     add_child(trapped.next, "a", FAIL)
@@ -105,7 +109,7 @@ def test_a_categorical_decision_stops_at_its_number_of_choices():
     add_child(n, "a", FAIL)
     add_child(n, "b", FAIL)
     n.visits = 1000
-    assert not widens(n)
+    assert not widens(n, CONFIG.pw_k)
     assert n.exhausted and n.closed and n.dead
 
 
@@ -128,9 +132,9 @@ def test_ucb_trades_reward_against_visits():
     fresh = add_child(n, [0.2], visits=1, r=0.0)
     n.visits = 11
     # 0.05 + 0.1 sqrt(ln 11 / 10) = 0.099 < 0 + 0.1 sqrt(ln 11) = 0.155
-    assert ucb_select(n) is fresh
+    assert ucb_select(n, PLAIN) is fresh
     fresh.visits = 10
-    assert ucb_select(n) is well_known
+    assert ucb_select(n, PLAIN) is well_known
     assert math.isclose(0.1 * math.sqrt(math.log(11) / 10), 0.04897, abs_tol=1e-4)
 
 
@@ -139,7 +143,7 @@ def test_ucb_skips_closed_children():
     add_child(n, [0.1], FAIL, visits=1, r=0.9)
     open_child = add_child(n, [0.2], visits=5, r=0.0)
     n.visits = 6
-    assert ucb_select(n) is open_child
+    assert ucb_select(n, PLAIN) is open_child
 
 
 def test_backup_keeps_the_max_on_the_whole_path():
@@ -206,6 +210,7 @@ class FadingSampler(QuasiRandomSampler):
     """Quasi-random values, each reported as less likely to be feasible than the one before."""
 
     def __init__(self) -> None:
+        super().__init__()
         self.p = 0.5
 
     def propose(self, ctx):
@@ -222,20 +227,45 @@ def test_search_widens_above_nodes_whose_proposals_are_hopeless():
     assert root_children(FadingSampler()) > root_children(QuasiRandomSampler())
 
 
+def test_without_hopeless_widening_the_pw_law_alone_widens():
+    def root_children(config: SearchConfig) -> int:
+        search = PWUCT(analytic_world("deskP"), FadingSampler(), seed=0, config=config)
+        search.run(12, stop_at_first=False)
+        assert search.root.n_hopeless == 0 or config.hopeless_widening
+        return len(search.root.children)
+
+    plain = PWUCT(analytic_world("deskP"), QuasiRandomSampler(), seed=0)
+    plain.run(12, stop_at_first=False)
+    off = replace(CONFIG, hopeless_widening=False)
+    assert root_children(off) == len(plain.root.children) < root_children(CONFIG)
+
+
+def test_note_proposal_keeps_the_outlook_without_marking_hopeless_when_switched_off():
+    n = node()
+    for value in range(CONFIG.hopeless_min_children):
+        add_child(n, [value / 10])
+    off = replace(CONFIG, hopeless_widening=False)
+    note_proposal(n, 0.5, off)
+    note_proposal(n, 0.01, off)
+    assert not n.hopeless and n.last_p_feasible == 0.01
+    note_proposal(n, 0.01, CONFIG)
+    assert n.hopeless
+
+
 def test_selection_keeps_to_children_within_the_outlook_ratio_of_the_best():
     n = node(CategoricalDomain(choices=["a", "b", "c"]))
     trap = add_child(n, "a", visits=1, r=0.075)
     promising = add_child(n, "b", visits=9, r=0.075)
     n.visits = 10
-    assert ucb_select(n) is trap  # plain UCB: the less visited
-    assert outlook(n) is None  # not every open child rated: no outlook
-    assert ucb_select(n, outlook_ratio=1.5) is trap
-    note_proposal(trap.next, 0.02)
-    note_proposal(promising.next, 0.3)
-    assert outlook(n) == pytest.approx(OUTLOOK_PRIOR_WEIGHT * 0.3 / (OUTLOOK_PRIOR_WEIGHT + 9))
-    assert ucb_select(n, outlook_ratio=1.5) is promising
-    note_proposal(promising.next, 0.025)  # its own proposals have since failed
-    assert ucb_select(n, outlook_ratio=1.5) is trap
+    assert ucb_select(n, PLAIN) is trap  # plain UCB: the less visited
+    assert outlook(n, W) is None  # not every open child rated: no outlook
+    assert ucb_select(n, replace(CONFIG, outlook_ratio=1.5)) is trap
+    note_proposal(trap.next, 0.02, CONFIG)
+    note_proposal(promising.next, 0.3, CONFIG)
+    assert outlook(n, W) == pytest.approx(W * 0.3 / (W + 9))
+    assert ucb_select(n, replace(CONFIG, outlook_ratio=1.5)) is promising
+    note_proposal(promising.next, 0.025, CONFIG)  # its own proposals have since failed
+    assert ucb_select(n, replace(CONFIG, outlook_ratio=1.5)) is trap
 
 
 def test_failures_through_a_choice_lower_its_outlook_but_not_a_placement_s():
@@ -244,27 +274,26 @@ def test_failures_through_a_choice_lower_its_outlook_but_not_a_placement_s():
     grasps = node(CategoricalDomain(choices=["top", "front", "right"]))
     trap = add_child(grasps, "top", visits=12, r=0.075)
     fresh = add_child(grasps, "front", visits=1, r=0.075)
-    note_proposal(trap.next, 0.5)  # an unseen grasp: the stated prior, far from its failures
-    note_proposal(fresh.next, 0.3)
+    # An unseen grasp: the stated prior, far from its failures.
+    note_proposal(trap.next, 0.5, CONFIG)
+    note_proposal(fresh.next, 0.3, CONFIG)
     grasps.visits = 13
-    assert child_outlook(trap) < child_outlook(fresh) < 0.3
-    assert ucb_select(grasps, outlook_ratio=1.25) is fresh
+    assert child_outlook(trap, W) < child_outlook(fresh, W) < 0.3
+    assert ucb_select(grasps, CONFIG) is fresh
     placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
     tried = add_child(placements, [0.5], visits=12, r=0.075)
-    note_proposal(tried.next, 0.5)
-    assert child_outlook(tried) == 0.5
+    note_proposal(tried.next, 0.5, CONFIG)
+    assert child_outlook(tried, W) == 0.5
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
     n = node(CategoricalDomain(choices=["a", "b"]))
     child = add_child(n, "a")
-    assert comparable_outlook(n) is None  # its child is not rated yet
-    note_proposal(child.next, 0.1)
-    assert comparable_outlook(n) == pytest.approx(
-        OUTLOOK_PRIOR_WEIGHT * 0.1 / (OUTLOOK_PRIOR_WEIGHT + child.visits)
-    )
+    assert comparable_outlook(n, W) is None  # its child is not rated yet
+    note_proposal(child.next, 0.1, CONFIG)
+    assert comparable_outlook(n, W) == pytest.approx(W * 0.1 / (W + child.visits))
     add_child(n, "b", FAIL)
-    assert comparable_outlook(n) is None  # exhausted
+    assert comparable_outlook(n, W) is None  # exhausted
 
 
 class OutlookSampler(QuasiRandomSampler):
@@ -272,6 +301,7 @@ class OutlookSampler(QuasiRandomSampler):
     knowledge base that has learned that no placement follows `top`."""
 
     def __init__(self) -> None:
+        super().__init__()
         self.untried_asked = 0
 
     def propose(self, ctx):
@@ -288,7 +318,8 @@ class OutlookSampler(QuasiRandomSampler):
 
 def test_search_leaves_a_choice_whose_outlook_fell_for_an_untried_one():
     def top_visits(sampler, ratio: float) -> int:
-        search = PWUCT(analytic_world("deskP"), sampler, seed=0, outlook_ratio=ratio)
+        config = replace(CONFIG, outlook_ratio=ratio)
+        search = PWUCT(analytic_world("deskP"), sampler, seed=0, config=config)
         search.run(40, stop_at_first=False)
         top = next(c for c in search.root.children if c.value == "top")
         return top.visits
@@ -298,16 +329,49 @@ def test_search_leaves_a_choice_whose_outlook_fell_for_an_untried_one():
     assert guided.untried_asked > 0
 
 
-def test_every_few_visits_selection_ignores_the_outlook():
-    from planner.search.tree import OUTLOOK_FREE_EVERY
+def test_the_tree_switches_off_leave_plain_pw_uct():
+    """With the outlook and hopeless rules off (the paper's tree), a sampler's ratings change
+    nothing: the search takes the same course as with the same values unrated."""
 
+    class Unrated(OutlookSampler):
+        def propose(self, ctx):
+            proposal = super().propose(ctx)
+            return proposal.value if isinstance(proposal, Proposal) else proposal
+
+    def course(sampler, config: SearchConfig) -> list[tuple[object, int]]:
+        search = PWUCT(analytic_world("deskP"), sampler, seed=0, config=config)
+        search.run(40, stop_at_first=False)
+        return [(c.value, c.visits) for c in search.root.children]
+
+    paper = replace(
+        CONFIG, outlook_widening=False, outlook_selection=False, hopeless_widening=False
+    )
+    rated = OutlookSampler()
+    assert course(rated, paper) == course(Unrated(), paper)
+    assert rated.untried_asked == 0
+    assert course(OutlookSampler(), CONFIG) != course(rated, paper)
+
+
+def test_selection_ignores_outlooks_when_switched_off():
     n = node(CategoricalDomain(choices=["a", "b", "c"]))
     low = add_child(n, "a", visits=1, r=0.075)
     high = add_child(n, "b", visits=9, r=0.075)
-    note_proposal(low.next, 0.01)
-    note_proposal(high.next, 0.5)
+    note_proposal(low.next, 0.01, CONFIG)
+    note_proposal(high.next, 0.5, CONFIG)
+    n.visits = 10
+    assert ucb_select(n, CONFIG) is high
+    assert ucb_select(n, PLAIN) is low
+
+
+def test_every_few_visits_selection_ignores_the_outlook():
+    every = CONFIG.outlook_free_every
+    n = node(CategoricalDomain(choices=["a", "b", "c"]))
+    low = add_child(n, "a", visits=1, r=0.075)
+    high = add_child(n, "b", visits=9, r=0.075)
+    note_proposal(low.next, 0.01, CONFIG)
+    note_proposal(high.next, 0.5, CONFIG)
     picks = []
-    for visits in range(1, 3 * OUTLOOK_FREE_EVERY + 1):
+    for visits in range(1, 3 * every + 1):
         n.visits = visits
-        picks.append(ucb_select(n, outlook_ratio=1.25))
-    assert picks.count(low) == 3 and picks.count(high) == 3 * OUTLOOK_FREE_EVERY - 3
+        picks.append(ucb_select(n, CONFIG))
+    assert picks.count(low) == 3 and picks.count(high) == 3 * every - 3

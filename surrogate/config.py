@@ -1,0 +1,41 @@
+"""The surrogate knobs that the service and the planner share, each with its one default.
+
+`server.settings` takes its defaults from here (and reads the environment over them), the
+service's engine and the planner's copy of the suggestion code start from the same values, and
+`surrogate.models` builds its predictors with them. Kept free of heavy imports so that reading
+the settings does not load torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class SurrogateConfig:
+    max_inducing: int = 128
+    """Inducing points of a type's variational GP classifier (k-means initialised)."""
+    prior_weight: float = 0.45
+    """How far the stated prior moves P(feasible) away from 0.5 at an observed point."""
+    prior_lengthscale: float = 0.1
+    """The stated prior's reach in the unit cube, per sqrt(D)."""
+    recent_weight: float = 0.5
+    """How far a point not yet fitted moves P(feasible) toward its label, at the point."""
+    recent_lengthscale: float = 0.05
+    """Its reach per sqrt(D): half the prior's, since a fit will follow."""
+    pending_ttl_s: float = 30.0
+    """How long a served suggestion stays pending (pushing others away) without an answer."""
+    mpf_margin: float = 0.1
+    """Suggest answers the most spread point within this fraction of the best MPF (0: argmax)."""
+    mpf_margin_abs: float = 0.025
+    """... or within this much of it (absolute P(feasible)): where every value is tiny, spread."""
+    pop_size: int = 24
+    """NSGA-II's population when maximising an acquisition."""
+    generations: int = 2
+    """NSGA-II's generations, the first being the start population (0: raw samples only)."""
+    raw_samples: int = 256
+    """Space-filling samples scored before NSGA-II starts from the best of them."""
+    refresh_s: float = 0.5
+    """The service loads a type's new points when they are older than this (one query)."""
+    prefit_types: int = 16
+    """Types the service fits at start, the most recently used first."""
