@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, status
 
 from client.models import KnowledgeBase, KnowledgeBaseIn
-from server.api.deps import StoreDep
+from server.api.deps import HooksDep, StoreDep
 from server.services import kbs
 
 router = APIRouter(prefix="/v1/kbs", tags=["knowledge bases"])
@@ -29,7 +29,8 @@ def get_kb(kb: str, store: StoreDep) -> KnowledgeBase:
 
 
 @router.delete("/{kb}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_kb(kb: str, store: StoreDep) -> Response:
+def delete_kb(kb: str, store: StoreDep, hooks: HooksDep) -> Response:
     """Delete a knowledge base and everything in it; `default` comes back empty."""
     kbs.delete_kb(store, kb)
+    hooks.notify_kb_deleted(kb)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 from pydantic import TypeAdapter
@@ -109,7 +110,9 @@ class TrainingPoints:
 
     `x[i]` is `{decision label: value}`, `feasible[i]` its label; `version` is the type's point
     count when read (it only grows; on PostgreSQL `x` may already hold a few points more),
-    `last_point_id` the cursor to pass as `after_point_id` next time.
+    `last_point_id` the cursor to pass as `after_point_id` next time. `origin` names the type's
+    row (id and creation time): a type deleted with its knowledge base and created again has
+    another, though SQLite may give it the same ids.
     """
 
     type_id: str
@@ -118,6 +121,7 @@ class TrainingPoints:
     feasible: list[bool]
     version: int
     last_point_id: int | None
+    origin: tuple[int, datetime]
 
 
 def load_training_points(
@@ -137,4 +141,5 @@ def load_training_points(
             feasible=[bool(p.feasible) for p in points],
             version=row.n_points,
             last_point_id=points[-1].id if points else after_point_id,
+            origin=(row.id, row.created_at),
         )

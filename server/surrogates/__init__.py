@@ -34,6 +34,7 @@ def install(app: FastAPI) -> None:
     engine = SurrogateEngine(app.state.store, config)
     hooks = app.state.hooks
     hooks.points_added.append(engine.notify)
+    hooks.kb_deleted.append(engine.forget)
     hooks.surrogate_state = engine.state
     hooks.on_startup.append(engine.start)
     hooks.on_shutdown.append(engine.stop)

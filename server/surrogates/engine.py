@@ -24,7 +24,6 @@ from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
-from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit
@@ -41,10 +40,10 @@ Key = tuple[str, str]
 class EngineConfig:
     fit_in_child_process: bool = True  # False: fit in a thread of the server's own process
     fit_threads: int = 1
-    max_inducing: int = SurrogateConfig.max_inducing
-    refresh_s: float = SurrogateConfig.refresh_s
-    pending_ttl_s: float = SurrogateConfig.pending_ttl_s
-    prefit_types: int = SurrogateConfig.prefit_types
+    max_inducing: int = 128
+    refresh_s: float = 0.5
+    pending_ttl_s: float = 30.0
+    prefit_types: int = 16
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
 
 
@@ -56,6 +55,7 @@ class _Entry:
     y: np.ndarray
     last_point_id: int | None
     predictor: FeasibilityPredictor
+    origin: tuple[int, datetime]  # the type's row (TrainingPoints.origin)
     fit: Fit | None = None
     n_fitted: int = 0
     status: str = "prior"
@@ -164,6 +164,15 @@ class SurrogateEngine:
         for type_id in sorted(type_ids):
             self._enqueue((kb, type_id))
 
+    def forget(self, kb: str) -> None:
+        """`kb_deleted` hook: drop the knowledge base's models and queued fits, so that one
+        created again under its name learns from its own points only."""
+        with self._cond:
+            for key in [k for k in self._entries if k[0] == kb]:
+                del self._entries[key]
+            for key in [k for k in self._queue if k[0] == kb]:
+                del self._queue[key]
+
     def source(self, kb: str) -> KbModels:
         """The models of one knowledge base, as `surrogate.suggest` asks for them."""
         return KbModels(self, kb)
@@ -178,7 +187,7 @@ class SurrogateEngine:
         if entry is None:
             entry = self._load_new(key)
         elif time.monotonic() - entry.checked_at > self.config.refresh_s:
-            self._catch_up(key, entry)
+            entry = self._catch_up(key, entry)
         with self._cond:
             predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
             fitted = entry.fit is not None and entry.status == "ready"
@@ -186,27 +195,29 @@ class SurrogateEngine:
         predictor = served_predictor(predictor, z, y, n_fitted, seen if fitted else ())
         return TypeModel(entry.space, predictor, str(n_fitted), n_fitted, len(y))
 
-    def _catch_up(self, key: Key, entry: _Entry) -> None:
+    def _catch_up(self, key: Key, entry: _Entry) -> _Entry:
         """A type in use whose points are older than `refresh_s`: load the new points (one
         indexed query). A type without both classes gets its stated prior at once, here (a
         prior is a distance computation, not a fit: it must not wait behind other knowledge
         bases' fits); one that needs a model goes to the front of the fit queue, since a
         planner is using it now."""
-        if not entry.merging.acquire(blocking=False):
-            return  # another thread is catching this type up
+        merging = entry.merging
+        if not merging.acquire(blocking=False):
+            return entry  # another thread is catching this type up
         try:
             new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
-            self._merge(key, entry, new)
+            entry = self._merge(key, entry, new)
         finally:
-            entry.merging.release()
+            merging.release()
         if entry.n_fitted == entry.n_points:
-            return
+            return entry
         if needs_model(entry.y):
             self._enqueue(key, urgent=True)
-            return
+            return entry
         with self._cond:
             entry.predictor = prior(entry.z, entry.y)
             entry.n_fitted, entry.status = entry.n_points, "prior"
+        return entry
 
     def predict(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
         """P(feasible) of `xs` (decision label -> value) under the type's current model."""
@@ -264,7 +275,7 @@ class SurrogateEngine:
         encoder = SpaceEncoder(space)
         z = encoder.encode_points(points.x) if points.x else np.zeros((0, encoder.dim))
         y = np.asarray(points.feasible, dtype=bool)
-        entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y))
+        entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y), points.origin)
         entry.checked_at = time.monotonic()
         with self._cond:
             entry = self._entries.setdefault(key, entry)
@@ -334,6 +345,11 @@ class SurrogateEngine:
             return self._fitter_for_next_fit(replacing=fitter).fit(*args)
 
     def _merge(self, key: Key, entry: _Entry, new: TrainingPoints) -> _Entry:
+        if new.origin != entry.origin:  # deleted and created again (elsewhere): start afresh
+            with self._cond:
+                if self._entries.get(key) is entry:
+                    del self._entries[key]
+            return self._load_new(key)
         entry.checked_at = time.monotonic()
         if not new.x:
             return entry
