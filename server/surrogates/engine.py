@@ -24,6 +24,7 @@ from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
+from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit
@@ -40,10 +41,10 @@ Key = tuple[str, str]
 class EngineConfig:
     fit_in_child_process: bool = True  # False: fit in a thread of the server's own process
     fit_threads: int = 1
-    max_inducing: int = 128
-    refresh_s: float = 0.5
-    pending_ttl_s: float = 30.0
-    prefit_types: int = 16
+    max_inducing: int = SurrogateConfig.max_inducing
+    refresh_s: float = SurrogateConfig.refresh_s
+    pending_ttl_s: float = SurrogateConfig.pending_ttl_s
+    prefit_types: int = SurrogateConfig.prefit_types
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
 
 
