@@ -29,6 +29,7 @@ def test_generate_refuses_bad_arguments(tmp_path: Path) -> None:
     assert "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_bench_on_a_task_file_without_predecessors_is_a_clear_error(tmp_path: Path) -> None:
     suite = tmp_path / "suite"
     made = cpkb("generate", "--out", str(suite), "--seed", "3", "--no-check", "--workspaces", "1")

@@ -56,17 +56,20 @@ def one_line_error(out: subprocess.CompletedProcess[str], command: str) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 def test_plan_without_a_token_is_told_to_pass_one(guarded: LiveServer) -> None:
     line = one_line_error(cpkb(*PLAN, "--kb-url", guarded.url), "plan")
     assert guarded.url in line and "401" in line
     assert "pass --token or set CPKB_TOKEN" in line
 
 
+@pytest.mark.slow
 def test_plan_with_a_wrong_token_is_told_to_check_it(guarded: LiveServer) -> None:
     line = one_line_error(cpkb(*PLAN, "--kb-url", guarded.url, "--token", "wrong"), "plan")
     assert "check --token or CPKB_TOKEN" in line
 
 
+@pytest.mark.slow
 def test_a_token_from_the_environment_is_the_one_probed(guarded: LiveServer) -> None:
     line = one_line_error(cpkb(*PLAN, "--kb-url", guarded.url, CPKB_TOKEN="wrong"), "plan")
     assert "check --token or CPKB_TOKEN" in line
@@ -84,6 +87,7 @@ def test_the_probe_takes_the_right_token_and_creates_the_planners_knowledge_base
         probe(guarded.url, None)
 
 
+@pytest.mark.slow
 def test_plan_against_a_url_that_is_not_the_service_names_the_answer(
     guarded: LiveServer,
 ) -> None:
@@ -91,17 +95,20 @@ def test_plan_against_a_url_that_is_not_the_service_names_the_answer(
     assert "answered 404 GET /elsewhere/healthz" in line
 
 
+@pytest.mark.slow
 def test_plan_with_no_service_at_the_url_says_how_to_start_one() -> None:
     url = f"http://127.0.0.1:{free_port()}"
     line = one_line_error(cpkb(*PLAN, "--kb-url", url), "plan")
     assert f"cannot reach the knowledge base at {url}" in line and "cpkb serve" in line
 
 
+@pytest.mark.slow
 def test_plan_whose_embedded_service_cannot_start_is_one_line() -> None:
     out = cpkb(*PLAN, CPKB_DATABASE_URL="mysql://nobody@127.0.0.1/x")
     assert "embedded knowledge base did not start" in one_line_error(out, "plan")
 
 
+@pytest.mark.slow
 def test_bench_without_a_token_fails_before_any_run(guarded: LiveServer, tmp_path: Path) -> None:
     out_dir = tmp_path / "bench"
     line = one_line_error(cpkb(*BENCH, "--kb-url", guarded.url, "--out", str(out_dir)), "bench")
@@ -109,6 +116,7 @@ def test_bench_without_a_token_fails_before_any_run(guarded: LiveServer, tmp_pat
     assert not (out_dir / "runs.jsonl").exists()
 
 
+@pytest.mark.slow
 def test_bench_with_no_service_at_the_url_is_one_line(tmp_path: Path) -> None:
     url = f"http://127.0.0.1:{free_port()}"
     out = cpkb(*BENCH, "--kb-url", url, "--out", str(tmp_path / "bench"))

@@ -72,6 +72,7 @@ def test_any_valid_point_is_stored_or_a_clear_conflict(api: TestClient, point: d
     assert stored[result["point_id"]]["feasible"] is point["feasible"]
 
 
+@pytest.mark.slow
 @FUZZ
 @given(data=st.data())
 def test_bad_values_are_refused_and_change_nothing(api: TestClient, data: st.DataObject) -> None:
@@ -90,6 +91,7 @@ def test_bad_values_are_refused_and_change_nothing(api: TestClient, data: st.Dat
     assert_refused(api, response, before)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(
     payload=st.recursive(

@@ -189,6 +189,7 @@ def test_a_failed_local_suggestion_falls_back_for_that_call_only(live_kb):
     }
 
 
+@pytest.mark.slow
 def test_a_type_this_planner_creates_guides_at_once_as_the_service_would(live_kb):
     """A failure of a new type is taken up by the planner's own models at once (no wait for
     its first point to be stored, no fetch): the stated prior on the planner's own points,

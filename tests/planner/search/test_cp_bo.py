@@ -72,6 +72,7 @@ def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_se
     assert statistics.median(guided) < statistics.median(baseline), (guided, baseline)
 
 
+@pytest.mark.slow
 def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb):
     """Four expansions of one shelf node cost one suggestion; the fifth asks again. The values
     are distinct and inside the domain; a look at the best untried value takes it from the
