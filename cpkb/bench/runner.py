@@ -13,7 +13,6 @@ import hashlib
 import multiprocessing
 import os
 import re
-import threading
 import time
 import traceback
 import uuid
@@ -24,6 +23,7 @@ from typing import Any, Protocol
 
 from cpkb.bench.results import ResultStore
 from cpkb.bench.scenarios import TRANSFER_SAMPLER, Scenario
+from server.lifeline import exit_with_parent
 
 RunFn = Callable[..., Any]
 """`run_fn(task, method, seed, *, max_rollouts, kb_url, kb, quiet, **extra)` -> a result with
@@ -182,19 +182,13 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
                 job.kb_service.delete(job.kb_name)
 
 
-def _init_worker() -> None:
+def _init_worker(bench_pid: int) -> None:
     """One BLAS/torch thread per worker: the pool, not the libraries, uses the cores. A worker
     also leaves when the bench process is gone (killed rather than interrupted, it cannot
     terminate its pool, and an orphaned worker would keep its run going for nothing)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
-    threading.Thread(target=_leave_with, args=(os.getppid(),), daemon=True).start()
-
-
-def _leave_with(parent: int) -> None:
-    while os.getppid() == parent:
-        time.sleep(1.0)
-    os._exit(1)
+    exit_with_parent(bench_pid)
 
 
 class Progress(Protocol):
@@ -271,7 +265,7 @@ def run_bench(
     bar = progress or NoProgress()
     bar.start(len(jobs))
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(min(workers, len(jobs)), initializer=_init_worker)
+    pool = context.Pool(min(workers, len(jobs)), initializer=_init_worker, initargs=(os.getpid(),))
     results = pool.imap_unordered(execute, jobs, chunksize=1)
     try:
         for _ in range(len(jobs)):
