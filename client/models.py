@@ -85,15 +85,20 @@ class ContinuousDomain(_Strict):
 
     `heading` optionally marks a framed planar pose `(x, y, heading)`: the index of the heading
     dimension, whose `[low, high]` spans one turn `[-pi, pi)` in the frame's axes; the other two
-    are the position, taken as equally scaled (a square frame). Two such poses in one frame are
-    then also seen in each other's heading frame: where one lies across or along the hand that
-    places the other (see `surrogate.encoding`)."""
+    are the position, taken as equally scaled (a square frame) unless `scale` is given. Two
+    such poses in one frame are then also seen in each other's heading frame: where one lies
+    across or along the hand that places the other (see `surrogate.encoding`).
+
+    `scale` optionally gives, for such a pose, the half extents in metres `[half_x, half_y]`
+    that the position dimensions span about the frame's centre: the relative pose is then
+    measured in metres, right for rectangular frames and for poses scaled unlike each other."""
 
     kind: Literal["continuous"] = "continuous"
     low: list[Number] = Field(min_length=1, max_length=MAX_DIM)
     high: list[Number] = Field(min_length=1, max_length=MAX_DIM)
     frame: Label | None = None
     heading: int | None = Field(default=None, ge=0, le=2)
+    scale: list[Number] | None = Field(default=None, min_length=2, max_length=2)
 
     @model_validator(mode="after")
     def _check(self) -> ContinuousDomain:
@@ -105,6 +110,11 @@ class ContinuousDomain(_Strict):
             raise ValueError("every low must be below its high")
         if self.heading is not None and (self.frame is None or len(self.low) != 3):
             raise ValueError("heading needs a frame and three dimensions (x, y, heading)")
+        if self.scale is not None:
+            if self.heading is None:
+                raise ValueError("scale needs a heading (a framed planar pose)")
+            if not all(math.isfinite(v) and v >= 0 for v in self.scale):
+                raise ValueError("scale must be two finite half extents >= 0 (metres)")
         return self
 
 

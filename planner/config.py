@@ -163,6 +163,13 @@ class KnowledgeConfig:
     the same seed on a fresh knowledge base gives the same run, at the cost of the waits."""
     fit_wait_s: float = 120.0
     """The longest wait for one refit in deterministic mode (then the run goes on, noted)."""
+    grasp_symmetry: bool = True
+    """A grasp holding a body being placed is encoded by the body's symmetries: opposite faces
+    of a box alike, all side faces alike for a square footprint (`planner.failures.graphs`);
+    the paper encodes the grasp as declared."""
+    metric_frames: bool = True
+    """A placement's relative pose to another in its region is measured in metres, from the
+    region's and the body's extents (`surrogate.encoding`), not in seed units."""
 
     def __post_init__(self) -> None:
         _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0)
@@ -219,6 +226,8 @@ PRESETS: Mapping[str, Preset] = {
             "search.outlook_widening": False,
             "search.outlook_selection": False,
             "search.hopeless_widening": False,
+            "knowledge.grasp_symmetry": False,
+            "knowledge.metric_frames": False,
         },
     ),
 }

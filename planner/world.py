@@ -56,15 +56,40 @@ class TransitionOutcome:
         return next((c for c in self.checks if not c.ok), None)
 
 
+Extents = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class WorldGeometry:
+    """What a world tells the encodings about its geometry (`planner.failures.graphs`), in
+    metres; a world without geometry (an analytic one) tells nothing and gets the encodings of
+    the declared domains. Tuples, not dicts: a geometry keys the process's cache of graphs.
+
+    `footprints`: each movable body's footprint `(size_x, size_y)`, from which the symmetries
+    of its grasps follow. `placement_extents`: each placement decision's half extents
+    `(half_x, half_y)` that its seed's x and y span about its region's centre."""
+
+    footprints: tuple[tuple[str, Extents], ...] = ()
+    placement_extents: tuple[tuple[str, Extents], ...] = ()
+
+    def footprint(self, body: str) -> Extents | None:
+        return dict(self.footprints).get(body)
+
+    def extents(self, var: str) -> Extents | None:
+        return dict(self.placement_extents).get(var)
+
+
 class BindingWorld(Protocol):
     """A task to bind: its skeleton and a way to execute transition layers.
 
     `state` is opaque to the search: the world returns it with each successful transition
-    and restores it before executing the next layer from that tree node.
+    and restores it before executing the next layer from that tree node. `geometry` is what it
+    tells the encodings (`WorldGeometry()` for none).
     """
 
     name: str
     skeleton: Skeleton
+    geometry: WorldGeometry
 
     def initial_state(self) -> object: ...
 

@@ -33,12 +33,14 @@ class CategoricalDomain:
 @dataclass(frozen=True)
 class ContinuousDomain:
     """A box `low..high`; `frame` names the space the values are positions in, `heading` the
-    index of a planar pose's heading dimension (see `surrogate.encoding`)."""
+    index of a planar pose's heading dimension, `scale` the half extents in metres that the
+    position dimensions span about the frame's centre (see `surrogate.encoding`)."""
 
     low: tuple[float, ...]
     high: tuple[float, ...]
     frame: str | None = None
     heading: int | None = None
+    scale: tuple[float, float] | None = None
     kind: str = "continuous"
 
 
@@ -59,9 +61,11 @@ def continuous(
     high: list[float] | tuple[float, ...],
     frame: str | None = None,
     heading: int | None = None,
+    scale: list[float] | tuple[float, ...] | None = None,
 ) -> ContinuousDomain:
     """A continuous domain from lists."""
-    return ContinuousDomain(tuple(map(float, low)), tuple(map(float, high)), frame, heading)
+    half = None if scale is None else (float(scale[0]), float(scale[1]))
+    return ContinuousDomain(tuple(map(float, low)), tuple(map(float, high)), frame, heading, half)
 
 
 def domain_from_json(obj: Mapping[str, Any]) -> Domain:
@@ -71,7 +75,9 @@ def domain_from_json(obj: Mapping[str, Any]) -> Domain:
         if obj["kind"] == "categorical":
             return categorical(obj["choices"], obj.get("embedding"))
         if obj["kind"] == "continuous":
-            return continuous(obj["low"], obj["high"], obj.get("frame"), obj.get("heading"))
+            return continuous(
+                obj["low"], obj["high"], obj.get("frame"), obj.get("heading"), obj.get("scale")
+            )
     except (KeyError, TypeError, ValueError) as exc:
         raise DomainError(f"not a domain: {exc}") from exc
     raise DomainError(f"unknown domain kind {obj.get('kind')!r}")
@@ -89,6 +95,8 @@ def domain_to_json(domain: Domain) -> dict[str, Any]:
         out["frame"] = domain.frame
     if domain.heading is not None:
         out["heading"] = domain.heading
+    if domain.scale is not None:
+        out["scale"] = list(domain.scale)
     return out
 
 

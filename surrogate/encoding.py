@@ -20,6 +20,13 @@ sweeps a footprint that turns with its heading, so whether it meets the box besi
 function of the offset in the hand's frame, not of `|dx|, |dy|`: on pack's three box pairs the
 held-out AUC (leave one run out of 12, 148-259 points per type) went from 0.80-0.87 with the
 separation to 0.998-1.0 with the relative pose.
+
+Poses whose domains declare a `scale` (the half extents in metres their x and y span about the
+frame's centre) have that relative pose measured in metres: a seed's unit is a different length
+in x than in y in a rectangular region, and differs between bodies of different footprints in
+one region, so offsets in seed units would turn with the heading wrongly. The metric offsets
+are divided by twice the pair's larger reach, which for a square frame and equal bodies gives
+the same numbers as seed units; a pair without both scales keeps the seed-unit encoding.
 """
 
 from __future__ import annotations
@@ -138,7 +145,10 @@ class SpaceEncoder:
             za = z[:, a.start : a.start + a.width]
             zb = z[:, b.start : b.start + b.width]
             heading = _shared_heading(a, b)
-            pair = np.abs(za - zb) if heading is None else _relative_pose(za, zb, heading)
+            if heading is None:
+                pair = np.abs(za - zb)
+            else:
+                pair = _relative_pose(za, zb, heading, _metric_scales(a, b))
             z[:, start : start + pair.shape[1]] = pair
             start += pair.shape[1]
         return z
@@ -187,14 +197,50 @@ def _pair_width(a: _Var, b: _Var) -> int:
     return a.width if _shared_heading(a, b) is None else RELATIVE_POSE_WIDTH
 
 
-def _relative_pose(za: np.ndarray, zb: np.ndarray, heading: int) -> np.ndarray:
+Scales = tuple[tuple[float, float], tuple[float, float]]
+
+
+def _metric_scales(a: _Var, b: _Var) -> Scales | None:
+    """Both poses' half extents in metres, None unless both declare them."""
+    scale_a, scale_b = a.domain.scale, b.domain.scale  # type: ignore[union-attr]
+    return None if scale_a is None or scale_b is None else (scale_a, scale_b)
+
+
+def metric_offset(
+    za: np.ndarray, zb: np.ndarray, heading: int, scales: Scales
+) -> tuple[np.ndarray, np.ndarray]:
+    """`(dx, dy)` in metres in the frame's axes between encoded poses `(n, 3)` in [0, 1]: each
+    position dimension spans `[-half, half]` metres about the frame's centre."""
+    x, y = (i for i in range(3) if i != heading)
+    (ax, ay), (bx, by) = scales
+    dx = (2 * za[:, x] - 1) * ax - (2 * zb[:, x] - 1) * bx
+    dy = (2 * za[:, y] - 1) * ay - (2 * zb[:, y] - 1) * by
+    return dx, dy
+
+
+def metric_reach(scales: Scales) -> float:
+    """The unit metric offsets are divided by (twice this): the larger of the pair's reaches
+    along x and y, so that a square frame with equal bodies encodes as seed units do."""
+    (ax, ay), (bx, by) = scales
+    return max(ax + bx, ay + by)
+
+
+def _relative_pose(
+    za: np.ndarray, zb: np.ndarray, heading: int, scales: Scales | None = None
+) -> np.ndarray:
     """`(n, 5)`: a's offset in b's heading frame and b's in a's (`|u|/2, |v|/2` each), then the
-    heading difference `|wrap(a - b)| / pi`, from encoded poses `(n, 3)` in [0, 1]."""
+    heading difference `|wrap(a - b)| / pi`, from encoded poses `(n, 3)` in [0, 1]; with
+    `scales`, the offsets in metres over `2 * metric_reach`."""
     x, y = (i for i in range(3) if i != heading)
     theta_a = 2 * math.pi * za[:, heading] - math.pi
     theta_b = 2 * math.pi * zb[:, heading] - math.pi
-    dx = za[:, x] - zb[:, x]
-    dy = za[:, y] - zb[:, y]
+    reach = 0.0 if scales is None else metric_reach(scales)
+    if scales is not None and reach > 0:
+        dx, dy = metric_offset(za, zb, heading, scales)
+        dx, dy = dx / reach, dy / reach
+    else:
+        dx = za[:, x] - zb[:, x]
+        dy = za[:, y] - zb[:, y]
     out = np.empty((len(za), RELATIVE_POSE_WIDTH))
     for column, theta in enumerate((theta_b, theta_a)):  # the sign of the offset drops out
         cos, sin = np.cos(theta), np.sin(theta)

@@ -16,25 +16,43 @@ variables. Decisions are chained in the order they were taken (`then` edges): pl
 (`Inv-kin(body, #pose, #dir)` with the grasp chosen first) and grasping a body where it was put
 (the same call with the place chosen first) are different constraints, not one type.
 
-A grasp that holds a body being placed is encoded as the placing hand sees it: a placement's yaw
-is the hand's heading, so for a body with a square footprint every side grasp puts the same
-hand pose over the same footprint (all 60 shelf placements tried with `front` and `right` agreed),
-and what one side grasp taught about a place holds for the others. Its embedding there is the
-approach's horizontal and vertical share (`held_grasp_domain`), not the robot-relative direction.
+Encodings from geometry (`Encodings`, each switchable by configuration), from what the world
+tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bodies:
+
+- A grasp that holds a body being placed is encoded as the placing hand sees it
+  (`held_grasp_domain`). A placement's yaw is the hand's heading, so two grasps on opposite
+  faces of a box (front and back, right and left) put the same hand pose over the same
+  footprint turned half a turn, which a box cannot tell apart: they are one. Where the
+  footprint is square (within `SQUARE_TOLERANCE`) all four side grasps are one (all 60 shelf
+  placements tried with `front` and `right` agreed). The top grasp stays apart.
+- A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
+  the relative pose of two placements is measured in metres (`surrogate.encoding`).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from client.models import CategoricalDomain, Edge, Graph, Node
+from client.models import CategoricalDomain, ContinuousDomain, Domain, Edge, Graph, Node
 from planner.skeleton import DecisionVar, OperatorCall, Skeleton
-from planner.world import CheckResult
+from planner.world import CheckResult, WorldGeometry
 
 PLACE_KINDS = ("#pose",)
 GRASP_KINDS = ("#dir",)
+SQUARE_TOLERANCE = 1e-3
+"""Metres by which a footprint's sides may differ and it still counts as square."""
+
+
+@dataclass(frozen=True)
+class Encodings:
+    """The encodings from geometry a graph's decisions get; with both off (or no geometry), the
+    domains as the skeleton declares them (the paper's encoding)."""
+
+    geometry: WorldGeometry = field(default_factory=WorldGeometry)
+    grasp_symmetry: bool = True
+    metric_frames: bool = True
 
 
 @dataclass(frozen=True)
@@ -126,28 +144,31 @@ class _Builder:
         return placing
 
 
-def held_grasp_domain(domain: CategoricalDomain) -> CategoricalDomain:
+def is_square(footprint: tuple[float, float]) -> bool:
+    return abs(footprint[0] - footprint[1]) <= SQUARE_TOLERANCE
+
+
+def held_grasp_domain(domain: CategoricalDomain, square: bool) -> CategoricalDomain:
     """The grasp as the hand placing a body sees it: each choice's approach vector (its
-    embedding) reduced to its horizontal and vertical share, so that side grasps are one."""
+    embedding) without its signs, so that grasps on opposite faces are one; for a square
+    footprint, reduced to its horizontal and vertical share, so that all side grasps are one."""
     if domain.embedding is None:
         return domain
     return domain.model_copy(
         update={
             "embedding": {
                 choice: [math.hypot(*vector[:-1]), abs(vector[-1])]
+                if square
+                else [abs(v) for v in vector]
                 for choice, vector in domain.embedding.items()
             }
         }
     )
 
 
-def held_grasps(
-    skeleton: Skeleton, call: OperatorCall, square_bodies: frozenset[str]
-) -> frozenset[str]:
+def held_grasps(skeleton: Skeleton, call: OperatorCall) -> frozenset[str]:
     """The grasp variables of `call` that hold a body being placed by it: a grasp argument
-    chosen before a placement argument of the same body, for a body with a square footprint."""
-    if not call.args or call.args[0] not in square_bodies:
-        return frozenset()
+    chosen before a placement argument of the same body."""
     order = {v.var: i for i, v in enumerate(skeleton.decisions)}
     kinds = {v.var: v.kind for v in skeleton.decisions}
     places = [order[a] for a in call.args if kinds.get(a) in PLACE_KINDS]
@@ -158,14 +179,38 @@ def held_grasps(
     )
 
 
+def encoded_domains(
+    skeleton: Skeleton, call: OperatorCall, chosen: dict[str, DecisionVar], encodings: Encodings
+) -> dict[str, Domain]:
+    """The domains the decisions of a graph failing at `call` are encoded with."""
+    geometry = encodings.geometry
+    footprint = geometry.footprint(call.args[0]) if call.args else None
+    held = held_grasps(skeleton, call) if encodings.grasp_symmetry and footprint else frozenset()
+    out: dict[str, Domain] = {}
+    for var, decision in chosen.items():
+        domain = decision.domain
+        extents = geometry.extents(var)
+        if var in held and isinstance(domain, CategoricalDomain) and footprint is not None:
+            domain = held_grasp_domain(domain, is_square(footprint))
+        elif (
+            encodings.metric_frames
+            and extents is not None
+            and isinstance(domain, ContinuousDomain)
+            and domain.heading is not None
+        ):
+            domain = domain.model_copy(update={"scale": list(extents)})
+        out[var] = domain
+    return out
+
+
 def label_decisions(
     skeleton: Skeleton,
     nodes: dict[str, Node],
     chosen: dict[str, DecisionVar],
-    held: frozenset[str] = frozenset(),
+    domains: dict[str, Domain] | None = None,
 ) -> dict[str, str]:
-    """Rename decision vertexes by recency within the graph: `#dir`, `#dir-1`, ...; the grasps
-    in `held` get the held-grasp encoding (`held_grasp_domain`)."""
+    """Rename decision vertexes by recency within the graph: `#dir`, `#dir-1`, ...; each gets
+    its domain from `domains` (`encoded_domains`), by default the declared one."""
     order = [v.var for v in skeleton.decisions]
     bind: dict[str, str] = {}
     by_kind: dict[str, list[str]] = {}
@@ -175,9 +220,7 @@ def label_decisions(
         by_kind[kind].append(var)
         label = kind if rank == 0 else f"{kind}-{rank}"
         node = nodes[f"d:{var}"]
-        domain = chosen[var].domain
-        if var in held and isinstance(domain, CategoricalDomain):
-            domain = held_grasp_domain(domain)
+        domain = chosen[var].domain if domains is None else domains[var]
         nodes[f"d:{var}"] = Node(id=node.id, role="decision", label=label, domain=domain)
         bind[label] = var
     return bind
@@ -196,13 +239,13 @@ def failure_graph(
     transition_index: int,
     check: CheckResult,
     culprit: str | None = None,
-    square_bodies: frozenset[str] = frozenset(),
+    encodings: Encodings | None = None,
 ) -> FailureGraph:
     """The causal graph of `check` failing in transition layer `transition_index`.
 
     `culprit` overrides the check's first culprit (used to enumerate the graphs a task could
-    produce); by default the body most in contact is taken, as the authors do. `square_bodies`:
-    the bodies whose side grasps are one when they are placed (see the module docstring).
+    produce); by default the body most in contact is taken, as the authors do. `encodings`:
+    the encodings from the world's geometry (see the module docstring).
     """
     layer = skeleton.transitions[transition_index]
     call_index = layer.calls.index(check.call)
@@ -217,8 +260,9 @@ def failure_graph(
         if placing is not None:
             builder.edge(builder.decision(placing), body_id, "at")
     chain_decisions(builder)
-    held = held_grasps(skeleton, check.call, square_bodies)
-    bind = label_decisions(skeleton, builder.nodes, builder.decisions, held)
+    encodings = encodings if encodings is not None else Encodings()
+    domains = encoded_domains(skeleton, check.call, builder.decisions, encodings)
+    bind = label_decisions(skeleton, builder.nodes, builder.decisions, domains)
     graph = _task_independent_ids(builder.nodes, builder.edges)
     return FailureGraph(graph, bind, (transition_index, call_index), body)
 

@@ -36,7 +36,7 @@ from client.models import (
     Value,
 )
 from planner.config import KnowledgeConfig
-from planner.failures import FailureGraph, failure_graph
+from planner.failures import Encodings, FailureGraph, failure_graph
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -112,8 +112,8 @@ def _settled(detail: TypeDetail) -> bool:
 
 
 @lru_cache(maxsize=16)
-def _task_graphs(skeleton: str, square_bodies: frozenset[str]) -> dict[Key, FailureGraph]:
-    """The failure graphs of one skeleton (by its repr) and set of square bodies, shared by the
+def _task_graphs(skeleton: str, encodings: Encodings) -> dict[Key, FailureGraph]:
+    """The failure graphs of one skeleton (by its repr) and its encodings, shared by the
     sessions of a process. A graph depends only on these, the check and the culprit, and a
     planner process (a bench worker, a planner loop) plans one task many times: building the
     ~120 graphs prematch looks up took 28-100 ms per run."""
@@ -146,8 +146,10 @@ class KnowledgeSession:
         self.worker = worker
         self.stats = KnowledgeStats()
         self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
-        self._square_bodies: frozenset[str] = getattr(world, "square_bodies", frozenset())
-        self._graphs = _task_graphs(repr(self.skeleton), self._square_bodies)
+        self._encodings = Encodings(
+            world.geometry, self.config.grasp_symmetry, self.config.metric_frames
+        )
+        self._graphs = _task_graphs(repr(self.skeleton), self._encodings)
         self._active: dict[Key, Activation] = {}
         self._by_check: dict[tuple[int, int], list[tuple[Key, Activation]]] = {}
         self._pending: list[tuple[Key, FailureGraph, dict[str, Value], bool]] = []
@@ -182,7 +184,7 @@ class KnowledgeSession:
 
     def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
         if key not in self._graphs:
-            self._graphs[key] = failure_graph(self.skeleton, t, check, culprit, self._square_bodies)
+            self._graphs[key] = failure_graph(self.skeleton, t, check, culprit, self._encodings)
         return self._graphs[key]
 
     def _match(self, *, only_existing: bool) -> int:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from client.models import CategoricalDomain, ContinuousDomain, Value
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
-from planner.world import CheckResult, Culprit, TransitionOutcome
+from planner.world import CheckResult, Culprit, TransitionOutcome, WorldGeometry
 
 DIRECTIONS = {
     "front": [-1.0, 0.0, 0.0],
@@ -66,6 +66,7 @@ class AnalyticWorld:
     checks: dict[tuple[int, int], Check]
     culprit_candidates: tuple[str, ...] = ()
     calls: int = field(default=0)
+    geometry: WorldGeometry = field(default_factory=WorldGeometry)
 
     def initial_state(self) -> object:
         return None

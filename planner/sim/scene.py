@@ -144,14 +144,19 @@ class Scene:
         to the others."""
         sx, sy, syaw = (min(1.0, max(0.0, float(v))) for v in seed)
         region = self.region(region_name)
-        margin = max(self.sizes[body][:2]) / 2
-        half_x = max(0.0, region.size[0] / 2 - margin)
-        half_y = max(0.0, region.size[1] / 2 - margin)
+        half_x, half_y = self.placement_extents(body, region_name)
         local = ((2 * sx - 1) * half_x, (2 * sy - 1) * half_y, 0.0)
         frame = ((region.center[0], region.center[1], 0.0), yaw_quat(region.yaw))
         (x, y, _), _ = compose(frame, (local, (0.0, 0.0, 0.0, 1.0)))
         yaw = region.yaw + (2 * syaw - 1) * math.pi - heading
         return self.standing_pose(body, region, x, y, yaw)
+
+    def placement_extents(self, body: str, region_name: str) -> tuple[float, float]:
+        """The half extents in metres that `region_pose` spans about the region's centre: the
+        region's half size less half the body's footprint (any yaw keeps it inside)."""
+        region = self.region(region_name)
+        margin = max(self.sizes[body][:2]) / 2
+        return max(0.0, region.size[0] / 2 - margin), max(0.0, region.size[1] / 2 - margin)
 
     def in_region(self, body: str, region_name: str, tolerance: float = 3e-3) -> bool:
         region = self.region(region_name)

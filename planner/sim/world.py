@@ -15,7 +15,7 @@ from planner.sim.scene import MAX_FINGER_OPENING, Scene
 from planner.skeleton import Skeleton
 from planner.tasks import Task, build_skeleton
 from planner.tasks.loader import HOME_CONFIG
-from planner.world import CheckResult, TransitionOutcome
+from planner.world import CheckResult, TransitionOutcome, WorldGeometry
 
 
 @dataclass(frozen=True)
@@ -57,11 +57,15 @@ class PyBulletWorld:
             *self.scene.movable_names,
             "robot",
         )
-        # Bodies whose side grasps place alike (see `planner.failures.graphs`).
-        self.square_bodies = frozenset(
-            name
-            for name in self.scene.movable_names
-            if abs(self.scene.sizes[name][0] - self.scene.sizes[name][1]) < 1e-9
+        self.geometry = WorldGeometry(
+            footprints=tuple(
+                (name, (float(self.scene.sizes[name][0]), float(self.scene.sizes[name][1])))
+                for name in self.scene.movable_names
+            ),
+            placement_extents=tuple(
+                (var, self.scene.placement_extents(body, region))
+                for var, (body, region) in self.pose_sources.items()
+            ),
         )
         self.restore(self._initial)
 

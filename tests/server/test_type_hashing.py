@@ -78,6 +78,28 @@ def test_a_heading_added_to_a_stored_framed_type_is_the_same_type() -> None:
     check_same_type(resolved, stored.canonical)
 
 
+def test_a_scale_or_another_embedding_is_the_same_type() -> None:
+    """Metric frames and grasp symmetries say how values are encoded, not which there are: a
+    type stored without them (or by a task with other extents) keeps its own encoding."""
+    framed = {"kind": "continuous", "low": [0, 0, 0], "high": [1, 1, 1], "frame": "region5"}
+    stored = resolve(make_graph(pose_domain={**framed, "heading": 2}))
+    scaled = {**framed, "heading": 2, "scale": [0.3, 0.1]}
+    check_same_type(resolve(make_graph(pose_domain=scaled)), stored.canonical)
+    grasps = next(n["domain"] for n in make_graph()["nodes"] if n["label"] == "#dir")
+    symmetric = {**grasps, "embedding": {c: [1.0, 0.0] for c in grasps["choices"]}}
+    graph = make_graph(pose_domain={**framed, "heading": 2})
+    for node in graph["nodes"]:
+        if node["label"] == "#dir":
+            node["domain"] = symmetric
+    check_same_type(resolve(graph), stored.canonical)
+    fewer = {**grasps, "choices": grasps["choices"][:-1], "embedding": None}
+    for node in graph["nodes"]:
+        if node["label"] == "#dir":
+            node["domain"] = fewer
+    with pytest.raises(TypeConflict, match="'#dir'"):
+        check_same_type(resolve(graph), stored.canonical)
+
+
 def test_collision_pair_shares_a_hash_but_conflicts() -> None:
     six, threes = (resolve(g) for g in collision_pair())
     assert six.type_id == threes.type_id

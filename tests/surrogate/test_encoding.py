@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from surrogate.domains import CategoricalDomain, ContinuousDomain
-from surrogate.encoding import EncodingError, SpaceEncoder, same_domain
+from surrogate.domains import (
+    CategoricalDomain,
+    ContinuousDomain,
+    continuous,
+    domain_from_json,
+    domain_to_json,
+)
+from surrogate.encoding import EncodingError, SpaceEncoder, metric_reach, same_domain
 
 DIRS = ["front", "right", "top", "back", "left"]
 APPROACH = {
@@ -167,3 +173,80 @@ def test_the_wire_contract_refuses_a_heading_without_a_framed_planar_pose() -> N
         WireDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], heading=2)
     with pytest.raises(ValidationError, match="heading needs a frame"):
         WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", heading=1)
+
+
+def metric_space(scale_a: tuple[float, float], scale_b: tuple[float, float]) -> dict:
+    def pose(scale: tuple[float, float]) -> ContinuousDomain:
+        return continuous([0.0] * 3, [1.0] * 3, frame="tray", heading=2, scale=scale)
+
+    return {"a": pose(scale_a), "b": pose(scale_b)}
+
+
+def seed_at(metres: tuple[float, float], scale: tuple[float, float], heading: float) -> list:
+    """The seed of a place `metres` from the frame's centre, its hand heading at `heading`."""
+    return [0.5 + metres[0] / (2 * scale[0]), 0.5 + metres[1] / (2 * scale[1]), heading]
+
+
+def metric_offsets(space: dict, a: list[float], b: list[float]) -> np.ndarray:
+    """a's offset `(|u|, |v|)` in b's heading frame, in metres, from the encoded features."""
+    encoder = SpaceEncoder(space)
+    features = encoder.encode(encoder.columns([{"a": a, "b": b}]))[0, encoder.base_dim :]
+    reach = metric_reach((space["a"].scale, space["b"].scale))
+    return features[:2] * 2 * reach
+
+
+# A 0.60 x 0.20 m region with bodies of 0.04 and 0.08 m footprints, and a 1.0 x 0.4 m one with
+# bodies of 0.10 and 0.06 m: the seed's units are other lengths in x and y, and per body.
+SCALES = [((0.28, 0.08), (0.26, 0.06)), ((0.45, 0.15), (0.47, 0.17))]
+
+
+@pytest.mark.parametrize(("scale_a", "scale_b"), SCALES)
+def test_a_metric_relative_pose_is_the_offset_in_metres(scale_a, scale_b) -> None:
+    space = metric_space(scale_a, scale_b)
+    a_at, b_at = (0.10, 0.03), (-0.05, -0.01)  # 0.15 m along x, 0.04 m along y apart
+    # b's hand heads along +x (seed 0.5): the offset is along x and across it along y ...
+    along = metric_offsets(space, seed_at(a_at, scale_a, 0.3), seed_at(b_at, scale_b, 0.5))
+    np.testing.assert_allclose(along, [0.15, 0.04], atol=1e-12)
+    # ... and along +y (seed 0.75) the other way round
+    across = metric_offsets(space, seed_at(a_at, scale_a, 0.3), seed_at(b_at, scale_b, 0.75))
+    np.testing.assert_allclose(across, [0.04, 0.15], atol=1e-12)
+
+
+def test_seed_units_would_not_give_the_metric_offset() -> None:
+    """Without scales, the same metric places encode unlike each other (the test above can fail)."""
+    (a_scale, b_scale), _ = SCALES
+    a, b = seed_at((0.10, 0.03), a_scale, 0.3), seed_at((-0.05, -0.01), b_scale, 0.5)
+    unscaled = relative_pose(a, b)[:2]
+    assert not np.allclose(unscaled / unscaled[0], [1.0, 0.04 / 0.15], atol=0.05)
+
+
+def test_a_square_frame_with_equal_bodies_encodes_as_seed_units_do() -> None:
+    """Metric frames change nothing where seed units were already metric up to one factor."""
+    space = metric_space((0.2, 0.2), (0.2, 0.2))
+    encoder = SpaceEncoder(space)
+    a, b = [0.7, 0.2, 0.75], [0.4, 0.6, 0.1]
+    metric = encoder.encode(encoder.columns([{"a": a, "b": b}]))[0, encoder.base_dim :]
+    np.testing.assert_allclose(metric, relative_pose(a, b), atol=1e-12)
+
+
+def test_a_pair_with_one_scale_only_keeps_the_seed_unit_encoding() -> None:
+    space = {**metric_space((0.28, 0.08), (0.26, 0.06)), "b": planar_space()["b"]}
+    encoder = SpaceEncoder(space)
+    a, b = [0.7, 0.2, 0.75], [0.4, 0.6, 0.1]
+    mixed = encoder.encode(encoder.columns([{"a": a, "b": b}]))[0, encoder.base_dim :]
+    np.testing.assert_allclose(mixed, relative_pose(a, b), atol=1e-12)
+
+
+def test_a_scale_survives_the_wire_and_needs_a_framed_planar_pose() -> None:
+    from client.models import ContinuousDomain as WireDomain
+
+    wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, scale=[0.3, 0.1])
+    domain = domain_from_json(wire.model_dump())
+    assert domain.scale == (0.3, 0.1)
+    assert WireDomain.model_validate(domain_to_json(domain)) == wire
+    old = domain_from_json(WireDomain(low=[0.0] * 3, high=[1.0] * 3).model_dump())
+    assert old.scale is None and "scale" not in domain_to_json(old)
+    with pytest.raises(ValidationError, match="scale needs a heading"):
+        WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", scale=[0.3, 0.1])
+    with pytest.raises(ValidationError, match="half extents"):
+        WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, scale=[0.3, -0.1])

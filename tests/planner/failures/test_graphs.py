@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
-from client.models import ContinuousDomain
-from planner.failures import failure_graph
+import numpy as np
+import pytest
+
+from client.models import CategoricalDomain, ContinuousDomain
+from planner.failures import Encodings, failure_graph
 from planner.search.analytic import GRASP_DOMAIN, analytic_world, pick_place_skeleton
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
-from planner.world import CheckResult, Culprit
+from planner.tasks import grasp_domain, pose_domain
+from planner.world import CheckResult, Culprit, WorldGeometry
+from surrogate.domains import space_from_json
+from surrogate.encoding import SpaceEncoder
 
 POSE = ContinuousDomain(low=[0.0] * 3, high=[1.0] * 3)
 
@@ -65,14 +71,16 @@ def test_a_motion_failure_backtracks_through_the_configurations():
     assert fg.bind == {"#dir": "#dir1", "#pose": "#pose12"}
 
 
-def regrasp_skeleton() -> Skeleton:
+def regrasp_skeleton(
+    grasps: CategoricalDomain = GRASP_DOMAIN, pose: ContinuousDomain = POSE
+) -> Skeleton:
     def grasp(out: str) -> Layer:
         call = OperatorCall("Sample-grasp", ("body",), (out,))
-        return Layer("decision", (call,), DecisionVar(out, "#dir", GRASP_DOMAIN, call))
+        return Layer("decision", (call,), DecisionVar(out, "#dir", grasps, call))
 
-    def pose(out: str, region: str) -> Layer:
+    def place(out: str, region: str) -> Layer:
         call = OperatorCall("Sample-pose", ("body", region), (out,))
-        return Layer("decision", (call,), DecisionVar(out, "#pose", POSE, call))
+        return Layer("decision", (call,), DecisionVar(out, "#pose", pose, call))
 
     def move(pose_arg: str, dir_arg: str, c0: str, c1: str, op: str) -> Layer:
         return Layer(
@@ -88,11 +96,11 @@ def regrasp_skeleton() -> Skeleton:
         (
             grasp("#dir1"),
             move("pose0", "#dir1", "config0", "#config1", "Move-Pick"),
-            pose("#pose13", "region3"),
+            place("#pose13", "region3"),
             move("#pose13", "#dir1", "#config1", "#config2", "Move-Place"),
             grasp("#dir2"),
             move("#pose13", "#dir2", "#config2", "#config3", "Move-Pick"),
-            pose("#pose12", "region2"),
+            place("#pose12", "region2"),
             move("#pose12", "#dir2", "#config3", "#config4", "Move-Place"),
         )
     )
@@ -168,17 +176,65 @@ def grasp_domain_of(fg) -> object:
     return next(n.domain for n in fg.graph.nodes if n.label == "#dir")
 
 
-def test_a_square_body_being_placed_sees_its_side_grasps_as_one():
-    skeleton = regrasp_skeleton()
-    square = frozenset({"body"})
+def with_footprint(size: tuple[float, float], **switches: bool) -> Encodings:
+    return Encodings(WorldGeometry(footprints=(("body", size),)), **switches)
+
+
+def encoded_grasps(fg) -> dict[str, tuple[float, ...]]:
+    """The GP input row of each grasp choice, as the surrogate encodes the graph's grasp."""
+    domain = grasp_domain_of(fg)
+    encoder = SpaceEncoder(space_from_json({"#dir": domain.model_dump()}))
+    return {
+        choice: tuple(np.round(encoder.encode({"#dir": np.array([i])})[0], 9))
+        for i, choice in enumerate(domain.choices)
+    }
+
+
+@pytest.mark.parametrize("grasps", [GRASP_DOMAIN, grasp_domain()])
+def test_a_rectangular_box_being_placed_sees_opposite_faces_alike(grasps):
+    """A 0.04 x 0.08 box: front and back place alike, right and left alike, front not right."""
+    skeleton = regrasp_skeleton(grasps)
     shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)  # Inv-kin(body, #pose12, #dir2)
-    held = grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, square_bodies=square))
+    box = with_footprint((0.04, 0.08))
+    rows = encoded_grasps(failure_graph(skeleton, 3, shelf_ik, encodings=box))
+    assert rows["front"] == rows["back"] and rows["right"] == rows["left"]
+    assert rows["front"] != rows["right"]
+    assert rows["top"] not in {rows["front"], rows["right"]}
+
+
+@pytest.mark.parametrize("size", [(0.06, 0.06), (0.06, 0.0605)])
+def test_a_square_body_being_placed_sees_its_side_grasps_as_one(size):
+    skeleton = regrasp_skeleton()
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
+    held = grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, encodings=with_footprint(size)))
     assert held.choices == GRASP_DOMAIN.choices
     sides = {tuple(held.embedding[c]) for c in ("front", "right", "back", "left")}
     assert sides == {(1.0, 0.0)} and held.embedding["top"] == [0.0, 1.0]
-    # not placing (the regrasp picks at #pose13), or not square: the robot-relative directions
-    pick_ik = CheckResult(skeleton.transitions[2].calls[0], False)
-    assert grasp_domain_of(failure_graph(skeleton, 2, pick_ik, square_bodies=square)) == (
-        GRASP_DOMAIN
-    )
-    assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik)) == GRASP_DOMAIN
+    rows = encoded_grasps(failure_graph(skeleton, 3, shelf_ik, encodings=with_footprint(size)))
+    assert len({rows[c] for c in ("front", "right", "back", "left")}) == 1
+    assert rows["top"] != rows["front"]
+
+
+def test_grasps_keep_their_declared_encoding_where_no_placement_or_switched_off():
+    skeleton = regrasp_skeleton()
+    box = with_footprint((0.04, 0.08))
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
+    pick_ik = CheckResult(skeleton.transitions[2].calls[0], False)  # the regrasp picks at #pose13
+    assert grasp_domain_of(failure_graph(skeleton, 2, pick_ik, encodings=box)) == GRASP_DOMAIN
+    assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik)) == GRASP_DOMAIN  # no geometry
+    off = with_footprint((0.04, 0.08), grasp_symmetry=False)
+    assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, encodings=off)) == GRASP_DOMAIN
+
+
+def test_a_framed_placement_gets_its_half_extents_in_metres():
+    skeleton = regrasp_skeleton(pose=pose_domain("region2"))
+    geometry = WorldGeometry(placement_extents=(("#pose12", (0.21, 0.07)),))
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
+
+    def pose_of(fg):
+        return next(n.domain for n in fg.graph.nodes if n.label == "#pose")
+
+    metric = pose_of(failure_graph(skeleton, 3, shelf_ik, encodings=Encodings(geometry)))
+    assert metric.scale == [0.21, 0.07] and metric.frame == "region2" and metric.heading == 2
+    off = Encodings(geometry, metric_frames=False)
+    assert pose_of(failure_graph(skeleton, 3, shelf_ik, encodings=off)) == pose_domain("region2")
