@@ -127,14 +127,17 @@ class LocalSurrogates:
         *,
         background: bool = True,
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
+        pending_clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
+        until a point answers them, so that how long a run waits does not change its course."""
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
         self._models: dict[str, _Model] = {}
         self._config = OptimizerConfig()
         self._settings_known = False  # `_config` is the service's (a fetch has been answered)
         # The service's pending lifetime replaces the default with the first fetch.
-        self._pending = PendingBook(ttl_s=SurrogateConfig.pending_ttl_s)
+        self._pending = PendingBook(ttl_s=SurrogateConfig.pending_ttl_s, clock=pending_clock)
         self.fetches = 0
         self.fetch_s = 0.0  # spent waiting for fetches (not the background ones)
         self._executor = (

@@ -105,6 +105,11 @@ class KnowledgeStats:
             self.events[message] = self.events.get(message, 0) + 1
 
 
+def _never() -> float:
+    """A clock that stands still: pending suggestions leave only when a point answers them."""
+    return 0.0
+
+
 def _settled(detail: TypeDetail) -> bool:
     """The type's fit holds every point the service has of it."""
     state = detail.surrogate
@@ -158,6 +163,8 @@ class KnowledgeSession:
                 lambda ids, known: client.models(kb, ids, known),
                 background=background,
                 refresh_rollouts=self.config.refresh_rollouts,
+                # A lifetime in wall time would make a run's course depend on its waits.
+                pending_clock=_never if self.config.deterministic else time.monotonic,
             )
             if local and hasattr(client, "models")
             else None
