@@ -40,6 +40,8 @@ from client.models import (
     PointsIn,
     PointsOut,
     PointsPage,
+    PointsSinceIn,
+    PointsSinceOut,
     PredictIn,
     PredictOut,
     SuggestIn,
@@ -202,6 +204,26 @@ class CpkbClient:
     ) -> PointsPage:
         params = {k: v for k, v in {"limit": limit, "cursor": cursor}.items() if v is not None}
         return self._call(PointsPage, "GET", f"/v1/kbs/{kb}/types/{type_id}/points", params=params)
+
+    def points_since(
+        self,
+        kb: str,
+        type_ids: Iterable[str],
+        after_point_id: int | None = None,
+        *,
+        exclude_run: str | None = None,
+        limit: int = MAX_POINTS_PER_POST,
+    ) -> PointsSinceOut:
+        """Points of these types stored after the cursor `after_point_id` (None: just the
+        cursor to start from), without those of run `exclude_run`."""
+        request = PointsSinceIn(
+            type_ids=list(type_ids),
+            after_point_id=after_point_id,
+            exclude_run=exclude_run,
+            limit=limit,
+        )
+        body = self._body(request)
+        return self._call(PointsSinceOut, "POST", f"/v1/kbs/{kb}/points/since", json=body)
 
     def iter_points(self, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[PointOut]:
         """Every point of a type in insertion order, fetched page by page."""

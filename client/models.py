@@ -288,6 +288,39 @@ class PointsPage(BaseModel):
     next_cursor: str | None = None
 
 
+MAX_WATCHED_TYPES = 512  # types in one `points/since` request
+
+
+class PointsSinceIn(_Strict):
+    """Other writers' points of these types stored after point `after_point_id` (a cursor
+    this service gave out): what a running planner folds into its models between fits.
+    Without `after_point_id` the answer has no points, only the cursor to start from. A type
+    ID the knowledge base does not hold is watched, not refused: its points come once another
+    writer creates it. `exclude_run` leaves out the caller's own points (`source.run`)."""
+
+    type_ids: list[Label] = Field(max_length=MAX_WATCHED_TYPES)
+    after_point_id: int | None = Field(default=None, ge=0, le=MAX_SEED)
+    exclude_run: Text | None = Field(default=None, max_length=MAX_LABEL)
+    limit: int = Field(default=MAX_POINTS_PER_POST, ge=1, le=MAX_POINTS_PER_POST)
+
+
+class LivePoint(BaseModel):
+    point_id: int
+    type_id: str
+    x: dict[str, Value]
+    feasible: bool
+    run: str | None = None
+
+
+class PointsSinceOut(BaseModel):
+    """`cursor`: the `after_point_id` of the next request; `more`: the limit cut this answer
+    short (ask again at once)."""
+
+    points: list[LivePoint]
+    cursor: int
+    more: bool = False
+
+
 class PredictIn(_Strict):
     x: list[dict[Label, Value]] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
 

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, status
 from fastapi.responses import StreamingResponse
 
-from client.models import PointsIn, PointsOut, PointsPage
+from client.models import PointsIn, PointsOut, PointsPage, PointsSinceIn, PointsSinceOut
 from server.api.deps import HooksDep, SettingsDep, StoreDep
 from server.observability import record_points_ingested
 from server.services import points
@@ -23,6 +23,12 @@ def post_points(kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep) -> Po
         record_points_ingested(kb, outcome.n_new, outcome.n_new_types)
         hooks.notify_points_added(kb, outcome.touched)
     return PointsOut(results=outcome.results)
+
+
+@router.post("/points/since")
+def points_since(kb: str, body: PointsSinceIn, store: StoreDep) -> PointsSinceOut:
+    """Other writers' points of the watched types stored after a cursor (live sharing)."""
+    return points.points_since(store, kb, body)
 
 
 @router.get("/types/{type_id}/points")

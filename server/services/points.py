@@ -17,10 +17,19 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import bindparam, insert, select, update
+from sqlalchemy import bindparam, func, insert, or_, select, update
 from sqlalchemy.orm import Session
 
-from client.models import MAX_SOURCE_DEPTH, PointIn, PointOut, PointResult, PointsPage
+from client.models import (
+    MAX_SOURCE_DEPTH,
+    LivePoint,
+    PointIn,
+    PointOut,
+    PointResult,
+    PointsPage,
+    PointsSinceIn,
+    PointsSinceOut,
+)
 from server.db import Store
 from server.errors import Conflict, InvalidInput
 from server.graphs import GraphError, ResolvedGraph, check_x
@@ -318,6 +327,37 @@ def list_points(
         points=[_point_out(p, type_id) for p in points],
         next_cursor=str(points[-1].id) if more else None,
     )
+
+
+def points_since(store: Store, kb: str, request: PointsSinceIn) -> PointsSinceOut:
+    """Points of the watched types stored after the cursor, in id order. The cursor is a point
+    id of the whole store: the highest at the time of the read, unless the limit cut the answer
+    short, so that a caller's next request skips what this one has looked at (its own points
+    included) rather than reading it again."""
+    after = request.after_point_id
+    with store.transaction() as session:
+        kb_pk = kb_id(session, kb)
+        top = session.scalar(select(func.max(PointRow.id))) or 0
+        if after is None or not request.type_ids:
+            return PointsSinceOut(points=[], cursor=max(top, after or 0))
+        watched = select(TypeRow.id, TypeRow.type_id).where(
+            TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(sorted(set(request.type_ids)))
+        )
+        type_ids: dict[int, str] = {pk: type_id for pk, type_id in session.execute(watched)}
+        query = select(
+            PointRow.id, PointRow.type_pk, PointRow.x, PointRow.feasible, PointRow.run
+        ).where(PointRow.type_pk.in_(list(type_ids)), PointRow.id > after, PointRow.id <= top)
+        if request.exclude_run is not None:
+            query = query.where(or_(PointRow.run.is_(None), PointRow.run != request.exclude_run))
+        rows = session.execute(query.order_by(PointRow.id).limit(request.limit + 1)).all()
+    more = len(rows) > request.limit
+    rows = rows[: request.limit]
+    points = [
+        LivePoint(point_id=pid, type_id=type_ids[pk], x=x, feasible=ok, run=run)
+        for pid, pk, x, ok, run in rows
+    ]
+    cursor = rows[-1][0] if more else max(top, after)
+    return PointsSinceOut(points=points, cursor=cursor, more=more)
 
 
 def csv_header(space: dict[str, Any]) -> list[str]:
