@@ -75,6 +75,7 @@ def test_a_token_from_the_environment_is_the_one_probed(guarded: LiveServer) -> 
     assert "check --token or CPKB_TOKEN" in line
 
 
+@pytest.mark.slow
 def test_the_probe_takes_the_right_token_and_creates_the_planners_knowledge_base(
     guarded: LiveServer,
 ) -> None:

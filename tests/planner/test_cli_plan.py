@@ -32,6 +32,7 @@ def test_plan_without_json_summarises_in_words(capsys):
     assert "solved after" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -54,6 +55,7 @@ def test_plan_mistakes_are_one_line_errors(argv, message):
     assert message in out.stderr and "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_a_misspelled_task_fails_before_any_progress_is_drawn():
     out = subprocess.run(
         [sys.executable, "-m", "cpkb", "plan", "--task", "deks", "--method", "quasi-random"],
@@ -68,6 +70,7 @@ def test_a_misspelled_task_fails_before_any_progress_is_drawn():
     ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("url", "message"),
     [

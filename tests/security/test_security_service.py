@@ -130,6 +130,7 @@ def test_client_sends_its_token_to_a_real_server(server_url: str) -> None:
         wrong.create_kb("nope")
 
 
+@pytest.mark.slow
 def test_cli_passes_the_token_from_option_or_environment(
     server_url: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -37,6 +37,7 @@ def first_answer_line(url: str, head: str, body_start: bytes) -> str:
     return received.split(b"\r\n", 1)[0].decode("ascii", "replace")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("framing", ["content-length", "chunked"])
 def test_an_unauthenticated_upload_is_refused_before_its_body(
     guarded_server: LiveServer, framing: str

@@ -25,6 +25,7 @@ def child() -> Iterator[ChildProcessFitter]:
     fitter.terminate()
 
 
+@pytest.mark.slow
 def test_a_child_process_fits_as_a_thread_does(child: ChildProcessFitter) -> None:
     z, y = _points(40)
     there = child.fit(z, y, 0, None, 16)
@@ -37,6 +38,7 @@ def test_a_child_process_fits_as_a_thread_does(child: ChildProcessFitter) -> Non
     np.testing.assert_allclose(there.predictor.proba(z), local.predictor.proba(z), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_a_failed_fit_raises_its_error_and_the_worker_stays(child: ChildProcessFitter) -> None:
     z, y = _points(40)
     with pytest.raises(RuntimeError, match="size of tensor"):

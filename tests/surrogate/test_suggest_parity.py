@@ -153,6 +153,7 @@ def _wait_for_fits(client: CpkbClient, kb: str, type_ids: set[str]) -> None:
     raise AssertionError("the fits did not land in 300 s")
 
 
+@pytest.mark.slow
 def test_the_planner_and_the_service_answer_recorded_requests_alike(stocked_service) -> None:
     url, kb = stocked_service
     with CpkbClient(url) as client:
@@ -165,6 +166,7 @@ def test_the_planner_and_the_service_answer_recorded_requests_alike(stocked_serv
             assert_same_answer(served, mine)
 
 
+@pytest.mark.slow
 def test_the_service_refuses_what_the_planners_copy_refuses(stocked_service) -> None:
     url, kb = stocked_service
     recorded = REQUESTS[0]

@@ -146,6 +146,7 @@ def test_a_refresh_runs_in_the_background_and_lands_at_the_next_suggestion():
     assert local.fetches == 2
 
 
+@pytest.mark.slow
 def test_a_planner_answers_its_own_suggestions(live_kb):
     from planner.run import run_plan
 

@@ -21,6 +21,7 @@ def _texts(root: Path) -> dict[str, str]:
     return {str(p.relative_to(root)): p.read_text() for p in sorted(root.rglob("*.yaml"))}
 
 
+@pytest.mark.slow
 def test_the_same_seed_writes_the_same_suite_and_another_seed_another(tmp_path: Path) -> None:
     generate_suite(tmp_path / "a", 2, seed=11, settings=UNCHECKED)
     generate_suite(tmp_path / "b", 2, seed=11, settings=UNCHECKED)
@@ -32,6 +33,7 @@ def test_the_same_seed_writes_the_same_suite_and_another_seed_another(tmp_path: 
     assert first["ws00/workspace.yaml"] != other["ws00/workspace.yaml"]
 
 
+@pytest.mark.slow
 def test_targets_and_predecessors_share_obstacles_but_are_not_copies(tmp_path: Path) -> None:
     generate_suite(tmp_path, 3, seed=5, settings=UNCHECKED)
     targets = suite_targets(tmp_path)
