@@ -12,7 +12,7 @@ from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_reachable
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from planner.tasks import build_skeleton, load_task
-from planner.world import CheckResult, Culprit, TransitionOutcome
+from planner.world import CheckResult, Culprit, TransitionOutcome, WorldGeometry
 
 
 def blocked_grasp_type(client: CpkbClient, kb: str, task: str) -> str:
@@ -114,11 +114,12 @@ def test_an_unreachable_knowledge_base_is_a_clear_error():
 
 
 class _PackSkeletonOnly:
-    """The pack task's skeleton and name: the session reads no more of a world."""
+    """The pack task's skeleton and name, without geometry: the session reads no more."""
 
     def __init__(self) -> None:
         self.name = "pack"
         self.skeleton = build_skeleton(load_task("pack"))
+        self.geometry = WorldGeometry()
 
 
 def pack_session(live_kb, client: CpkbClient, *, lookahead: bool) -> KnowledgeSession:
