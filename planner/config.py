@@ -170,9 +170,15 @@ class KnowledgeConfig:
     metric_frames: bool = True
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units."""
+    live_points: bool = False
+    """Take in other planners' new points of the active types while running, and activate at
+    once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
+    runs must not depend on what others post meanwhile."""
+    live_every_rollouts: int = 1
+    """Rollouts between two polls for other planners' points (with `live_points`)."""
 
     def __post_init__(self) -> None:
-        _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0)
+        _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0, live_every_rollouts=1)
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
 

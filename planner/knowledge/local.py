@@ -7,7 +7,8 @@ type's current predictor (`POST /v1/kbs/{kb}/models`) and maximises MPF itself, 
 code (`surrogate.suggest.suggest`) and optimiser settings as the service: this module keeps only
 the refresh policy, serves the snapshots as a `ModelSource`, and reads the wire models into the
 surrogate library's types at its edge. Between fetches the points this planner posted weigh in
-at once (`RecentPoints`), as they would in the service; a model is
+at once (`RecentPoints`), as they would in the service, and so do other planners' points that
+the session's live feed brings (`learn`, `planner.knowledge.live`); a model is
 fetched anew once its type has new points and `refresh_rollouts` rollouts have passed, and only
 if its version changed. Such a refresh runs in the background: the fetch costs 5-80 ms on a busy
 machine (the service encodes every changed fit), and the model in hand, with this planner's own
@@ -78,6 +79,8 @@ class _Model:
     n_fitted: int
     fetched_at: int  # rollout
     own: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)  # (batch, x, ok)
+    # Other planners' points since (point id, x, ok): `LocalSurrogates.learn`.
+    others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
     _predictor: FeasibilityPredictor | None = None
 
@@ -90,13 +93,13 @@ class _Model:
         planner created and has not fetched yet, the stated prior on its own points (what the
         service serves for a type with so few points)."""
         if self._predictor is None:
-            if self.fetched and not self.own:
+            if self.fetched and not self.own and not self.others:
                 self._predictor = self.fitted
                 return self._predictor
             encoder = SpaceEncoder(self.space)
             empty = np.zeros((0, encoder.dim))
-            feasible = [x for _, x, ok in self.own if ok]
-            infeasible = [x for _, x, ok in self.own if not ok]
+            feasible = [x for _, x, ok in self.own + self.others if ok]
+            infeasible = [x for _, x, ok in self.own + self.others if not ok]
             z_ok = encoder.encode_points(feasible) if feasible else empty
             z_bad = encoder.encode_points(infeasible) if infeasible else empty
             if self.fetched:
@@ -118,6 +121,7 @@ class _Fetch:
     type_ids: list[str]
     rollout: int
     stored: int
+    learned: int  # the newest other planner's point taken in when it was asked
 
 
 class LocalSurrogates:
@@ -144,6 +148,7 @@ class LocalSurrogates:
             ThreadPoolExecutor(1, thread_name_prefix="cpkb-models") if background else None
         )
         self._in_flight: _Fetch | None = None
+        self._learned = 0  # the newest point id `learn` has taken in
 
     def adopt(
         self,
@@ -179,6 +184,16 @@ class LocalSurrogates:
         if model is not None:
             model.add(batch, x, feasible)
 
+    def learn(self, type_id: str, point_id: int, x: Mapping[str, Value], feasible: bool) -> None:
+        """A point another planner stored (point `point_id`, newer than the last fetch of its
+        type), weighed in until a fetched model holds it; a type not held is left out (its
+        model, when fetched, holds the point)."""
+        model = self._models.get(type_id)
+        if model is not None:
+            model.others.append((point_id, dict(x), feasible))
+            model._predictor = None
+            self._learned = max(self._learned, point_id)
+
     def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
         """What the service's `suggest` would answer to this planner alone. `stored`: the last
         poster batch the service has taken in (its points are in a fetched model)."""
@@ -186,7 +201,7 @@ class LocalSurrogates:
         self._land()
         missing = [t for t in type_ids if t not in self._models]
         if missing:
-            self._apply(self._fetch_now(missing), missing, rollout, stored)
+            self._apply(self._fetch_now(missing), missing, rollout, stored, self._learned)
         stale = [t for t in type_ids if self._stale(t, rollout, stored)]
         if stale:
             self._refresh(stale, rollout, stored)
@@ -205,7 +220,7 @@ class LocalSurrogates:
         """The model in hand (`surrogate.suggest.ModelSource`): the last snapshot, with this
         planner's points since weighed in."""
         held = self._models[type_id]
-        n_points = held.n_fitted + len(held.own)
+        n_points = held.n_fitted + len(held.own) + len(held.others)
         return TypeModel(held.space, held.predictor(), held.version, held.n_fitted, n_points)
 
     def close(self) -> None:
@@ -219,7 +234,8 @@ class LocalSurrogates:
         model = self._models[type_id]
         if not model.fetched:
             return stored >= model.born_with  # the service has the type once its batch is in
-        return bool(model.own) and rollout - model.fetched_at >= self.refresh_rollouts
+        new_points = model.own or model.others
+        return bool(new_points) and rollout - model.fetched_at >= self.refresh_rollouts
 
     def _ask(self, type_ids: list[str]) -> Callable[[], ModelsOut]:
         """The fetch of these types, to be run here or in the background (it reads nothing of
@@ -239,14 +255,14 @@ class LocalSurrogates:
         """Fetch newer fits of types in use: in the background if this planner has one (one
         refresh at a time; the types asked for are not stale again until it lands)."""
         if self._executor is None:
-            self._apply(self._fetch_now(type_ids), type_ids, rollout, stored)
+            self._apply(self._fetch_now(type_ids), type_ids, rollout, stored, self._learned)
             return
         if self._in_flight is not None:
             return
         for type_id in type_ids:
             self._models[type_id].fetched_at = rollout
         answer = self._executor.submit(self._ask(type_ids))
-        self._in_flight = _Fetch(answer, type_ids, rollout, stored)
+        self._in_flight = _Fetch(answer, type_ids, rollout, stored, self._learned)
 
     def _land(self) -> None:
         """Apply a finished background refresh (its error, if it failed, is raised here)."""
@@ -254,11 +270,15 @@ class LocalSurrogates:
         if fetch is None or not fetch.answer.done():
             return
         self._in_flight = None
-        self._apply(fetch.answer.result(), fetch.type_ids, fetch.rollout, fetch.stored)
+        result = fetch.answer.result()
+        self._apply(result, fetch.type_ids, fetch.rollout, fetch.stored, fetch.learned)
 
-    def _apply(self, answer: ModelsOut, type_ids: list[str], rollout: int, stored: int) -> None:
+    def _apply(
+        self, answer: ModelsOut, type_ids: list[str], rollout: int, stored: int, learned: int
+    ) -> None:
         """Take in a fetch's answer; `stored`: the last poster batch the service had taken in
-        when it was asked (later own points stay weighed in on top of the new snapshot)."""
+        when it was asked, `learned`: the newest other planner's point taken in then (later
+        points stay weighed in on top of the new snapshot)."""
         names = {f.name for f in dataclasses.fields(OptimizerConfig)}
         self._config = OptimizerConfig(**{k: v for k, v in answer.optimizer.items() if k in names})
         self._settings_known = True
@@ -267,6 +287,7 @@ class LocalSurrogates:
             type_id, model = snapshot.model_from_json(shot.model_dump())
             previous = self._models.get(type_id)
             own = [p for p in previous.own if p[0] > stored] if previous is not None else []
+            others = [p for p in previous.others if p[0] > learned] if previous is not None else []
             self._models[type_id] = _Model(
                 space=dict(model.space),
                 fitted=model.predictor,
@@ -274,6 +295,7 @@ class LocalSurrogates:
                 n_fitted=model.n_fitted,
                 fetched_at=rollout,
                 own=own,
+                others=others,
             )
         for type_id in type_ids:
             if type_id not in self._models:

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 from client.errors import BadRequest
 from client.models import (
+    MAX_WATCHED_TYPES,
     Constraint,
     Graph,
     MatchResult,
@@ -37,6 +38,7 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph
+from planner.knowledge.live import LiveFeed
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -90,6 +92,8 @@ class KnowledgeStats:
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     errors: int = 0
     prematched: int = 0
+    live_points: int = 0  # other planners' points taken in during the run
+    live_types: int = 0  # types other planners created during the run, activated from them
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -169,6 +173,16 @@ class KnowledgeSession:
             if local and hasattr(client, "models")
             else None
         )
+        live = self.config.live_points and not self.config.deterministic
+        self.live = (
+            LiveFeed(
+                lambda ids, after: client.points_since(kb, ids, after, exclude_run=self.run),
+                every_rollouts=self.config.live_every_rollouts,
+                background=background,
+            )
+            if live and self.local is not None and hasattr(client, "points_since")
+            else None
+        )
         self._unmatched: dict[Key, FailureGraph] = {}
         self._absent: dict[Key, str] = {}  # graphs prematch found absent: their type IDs
         self._types: set[str] = set()
@@ -188,6 +202,8 @@ class KnowledgeSession:
                         self._unmatched[key] = fg
         found = self._match(only_existing=True)
         self.stats.prematched = found
+        if self.live is not None:
+            self.live.start()  # what is stored by now is in the models this run fetches
 
     def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
         if key not in self._graphs:
@@ -299,11 +315,38 @@ class KnowledgeSession:
             for key, _, x, feasible in self._pending:
                 if key in self._active:
                     self.local.note(self._active[key].type_id, x, feasible, batch)
+        self._take_live(rollout)
         if self.config.deterministic:
             self._wait_for_fits(
                 {self._active[k].type_id for k, *_ in self._pending if k in self._active}
             )
         self._pending = []
+
+    def _take_live(self, rollout: int) -> None:
+        """Weigh in the other planners' points a poll brought, activate the types they created
+        among the graphs prematch found absent, and poll again if due."""
+        if self.live is None or self.local is None:
+            return
+        absent = set(self._absent.values()) - self._types
+        watched = [*sorted(self._types), *sorted(absent)][:MAX_WATCHED_TYPES]
+        try:
+            points = self.live.tick(rollout, watched)
+        except Exception as exc:  # a knowledge-base outage must not stop the search
+            self.stats.event(f"live points failed: {exc}")
+            return
+        born: dict[str, int] = {}
+        for point in points:
+            if point.type_id in self._types:
+                self.local.learn(point.type_id, point.point_id, point.x, point.feasible)
+            else:
+                born[point.type_id] = born.get(point.type_id, 0) + 1
+        self.stats.live_points += len(points)
+        for key, type_id in [(k, t) for k, t in self._absent.items() if t in born]:
+            del self._absent[key]
+            if type_id not in self._types:
+                self.stats.live_types += 1
+            created = MatchResult(type_id=type_id, exists=True, n_points=born[type_id])
+            self._activate(key, self._graphs[key], created)
 
     def _wait_for_fits(self, type_ids: set[str]) -> None:
         """Block until the service has fitted every point of these types (deterministic mode):
@@ -429,6 +472,8 @@ class KnowledgeSession:
         if self._pending:
             self.on_rollout_end(self._rollout)
         self.poster.close()
+        if self.live is not None:
+            self.live.close()
         if self.local is not None:
             self.local.close()
         self.stats.kb_parts["close"] = time.perf_counter() - started

@@ -1,0 +1,107 @@
+"""Other planners' points, taken in while this planner runs (live sharing).
+
+A planner's local models change with the service's fits, and a fit lands seconds after the
+points that call for it: later than most runs last. So the session polls, every few rollouts
+and in the background, `POST /v1/kbs/{kb}/points/since` for the points other runs stored of the
+types this run watches (its active types, and the types of graphs prematch found absent), and
+folds them into its models as it does its own points. A watched absent type that comes back with
+points was created by another planner meanwhile: the session activates it at once.
+
+The cursor starts at the highest point id when the feed starts: what was stored before is in the
+models this planner fetches. On PostgreSQL a point whose transaction commits after one with a
+higher id was read is skipped here (it reaches this planner with the next fit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+
+from client.models import LivePoint, PointsSinceOut
+
+PollFn = Callable[[list[str], int | None], PointsSinceOut]
+MAX_PAGES = 8  # pages one poll reads before it hands over what it has
+
+
+class LiveFeed:
+    def __init__(self, poll: PollFn, *, every_rollouts: int = 1, background: bool = True) -> None:
+        self._poll = poll
+        self.every_rollouts = every_rollouts
+        self._cursor: int | None = None
+        self._polled_at: int | None = None
+        self._executor = (
+            ThreadPoolExecutor(1, thread_name_prefix="cpkb-live") if background else None
+        )
+        self._in_flight: Future[tuple[int, list[LivePoint]]] | None = None
+        self.polls = 0
+        self.points = 0
+
+    @property
+    def cursor(self) -> int | None:
+        return self._cursor
+
+    def start(self) -> None:
+        """Take the cursor now (no points: what is stored already is in the models to fetch)."""
+        if self._cursor is None and self._in_flight is None:
+            self._submit([], None)
+
+    def tick(self, rollout: int, type_ids: list[str]) -> list[LivePoint]:
+        """The points a finished poll brought, and a new poll of `type_ids` if one is due."""
+        points = self._land()
+        if self._cursor is None:
+            self.start()
+            return points
+        if self._in_flight is not None:
+            return points
+        due = self._polled_at is None or rollout - self._polled_at >= self.every_rollouts
+        if due and type_ids:
+            self._polled_at = rollout
+            self._submit(type_ids, self._cursor)
+            points += self._land()
+        return points
+
+    def close(self) -> None:
+        """Stop polling (a poll under way is waited for, its points dropped)."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            self._executor = None
+        self._in_flight = None
+
+    def _submit(self, type_ids: list[str], after: int | None) -> None:
+        self.polls += 1
+        job = _Poll(self._poll, type_ids, after)
+        if self._executor is None:
+            done: Future[tuple[int, list[LivePoint]]] = Future()
+            done.set_result(job())
+            self._in_flight = done
+        else:
+            self._in_flight = self._executor.submit(job)
+
+    def _land(self) -> list[LivePoint]:
+        """The answer of a finished poll (its error, if it failed, is raised here)."""
+        poll = self._in_flight
+        if poll is None or not poll.done():
+            return []
+        self._in_flight = None
+        cursor, points = poll.result()
+        self._cursor = cursor if self._cursor is None else max(self._cursor, cursor)
+        self.points += len(points)
+        return points
+
+
+class _Poll:
+    """One poll: the pages after `after`, read up to `MAX_PAGES` (it reads nothing of the
+    feed's state when it runs, so it can run in the background)."""
+
+    def __init__(self, poll: PollFn, type_ids: list[str], after: int | None) -> None:
+        self._poll, self._type_ids, self._after = poll, list(type_ids), after
+
+    def __call__(self) -> tuple[int, list[LivePoint]]:
+        answer = self._poll(self._type_ids, self._after)
+        points = list(answer.points)
+        for _ in range(MAX_PAGES - 1):
+            if not answer.more:
+                break
+            answer = self._poll(self._type_ids, answer.cursor)
+            points += answer.points
+        return answer.cursor, points

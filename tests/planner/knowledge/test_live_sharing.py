@@ -1,0 +1,117 @@
+"""Live sharing: two knowledge sessions on one real service, B learning from A during its run."""
+
+from __future__ import annotations
+
+import pytest
+from wait_support import wait_until
+
+from client import CpkbClient
+from planner.config import KnowledgeConfig
+from planner.knowledge import KnowledgeSession
+from planner.search.analytic import analytic_world
+from surrogate.encoding import SpaceEncoder
+
+# No refetch of a held model during the test: what changes it is the live feed alone.
+LIVE = KnowledgeConfig(live_points=True, refresh_rollouts=10**6)
+BLOCKED = "back"  # desk's first grasp that fails at the start pose
+
+
+def _grasp(session: KnowledgeSession, choice: str, rollout: int) -> None:
+    """The session's search tries grasp `choice` in rollout `rollout` (and posts its point)."""
+    bindings = {"#dir1": choice}
+    outcome = session.world.transition(0, bindings, None)
+    session.on_transition(0, bindings, outcome, rollout=rollout)
+    session.on_rollout_end(rollout)
+
+
+def _feasible_grasps(task: str = "desk") -> list[str]:
+    world = analytic_world(task)
+    choices = world.skeleton.decisions[0].domain.choices
+    return [c for c in choices if world.transition(0, {"#dir1": c}, None).failed is None]
+
+
+def _active_types(session: KnowledgeSession) -> set[str]:
+    return {a.type_id for a in session._active.values()}
+
+
+def test_a_planners_model_takes_in_another_planners_points_before_any_refit(live_kb):
+    feasible = _feasible_grasps()
+    assert len(feasible) >= 2
+    with CpkbClient(live_kb.url) as client:
+        a = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        a.prematch()
+        _grasp(a, BLOCKED, rollout=1)
+        (type_id,) = _active_types(a)
+
+        b = KnowledgeSession(
+            client, live_kb.name, analytic_world("desk"), background=False, config=LIVE
+        )
+        b.prematch()
+        assert _active_types(b) == {type_id}
+        grasp = b.skeleton.decisions[0]
+        assert b.suggest(grasp, {}, [], b.constraints_at("#dir1", {}), seed=0) is not None
+        held = b.local.model(type_id)
+        fetches = b.local.fetches
+        xs = [{"#dir": c} for c in feasible[:2]]
+        z = SpaceEncoder(held.space).encode_points(xs)
+        before = held.predictor.proba(z)
+
+        for rollout, choice in enumerate(feasible[:2], start=2):
+            _grasp(a, choice, rollout)
+        assert b.local.model(type_id).predictor.proba(z) == pytest.approx(before)
+        b.on_rollout_end(1)
+
+        after = b.local.model(type_id)
+        assert after.version == held.version and b.local.fetches == fetches
+        assert b.stats.live_points == 2 and after.n_points == held.n_points + 2
+        # Two feasible points where the model held none: P(feasible) rises there.
+        assert all(after.predictor.proba(z) > before + 0.1)
+        for session in (a, b):
+            session.close()
+        assert b.stats.errors == 0
+
+
+def test_the_own_points_of_a_planner_do_not_come_back_to_it(live_kb):
+    feasible = _feasible_grasps()
+    with CpkbClient(live_kb.url) as client:
+        b = KnowledgeSession(
+            client, live_kb.name, analytic_world("desk"), background=False, config=LIVE
+        )
+        b.prematch()
+        for rollout, choice in enumerate([BLOCKED, *feasible[:2]], start=1):
+            _grasp(b, choice, rollout)
+        b.on_rollout_end(4)
+        b.close()
+        assert b.points_posted == 3 and b.stats.live_points == 0 and b.stats.errors == 0
+
+
+@pytest.mark.parametrize("background", [False, True])
+def test_a_type_another_planner_creates_becomes_active_at_once(live_kb, background):
+    with CpkbClient(live_kb.url) as client:
+        b = KnowledgeSession(
+            client, live_kb.name, analytic_world("desk"), background=background, config=LIVE
+        )
+        b.prematch()
+        assert b.stats.types_active == 0 and b._absent
+
+        a = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        a.prematch()
+        _grasp(a, BLOCKED, rollout=1)
+        (type_id,) = _active_types(a)
+
+        rollouts = iter(range(1, 10**6))
+        wait_until(
+            lambda: b.on_rollout_end(next(rollouts)) or type_id in _active_types(b),
+            what="B activating the type A created",
+        )
+        assert b.stats.live_types == 1 and b.stats.types_active == 1
+        constraints = b.constraints_at("#dir1", {})
+        assert [c.type_id for c in constraints] == [type_id]
+        grasp = b.skeleton.decisions[0]
+        assert b.suggest(grasp, {}, [], constraints, seed=0) is not None
+        model = b.local.model(type_id)
+        blocked = SpaceEncoder(model.space).encode_points([{"#dir": BLOCKED}])
+        assert model.predictor.proba(blocked)[0] < 0.5  # A's failure there, in B's model
+        for session in (a, b):
+            session.close()
+        assert b.stats.errors == 0
