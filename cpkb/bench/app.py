@@ -39,6 +39,7 @@ class BenchSettings:
     summary_only: bool = False
     quiet: bool = False
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
+    concurrent: int = 1  # the runs of a cell N at a time on one knowledge base
 
 
 def plan_run(
@@ -160,6 +161,7 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
             time_limit_s=settings.time_limit_s,
             progress=None if settings.quiet else RichProgress(console),
             config=settings.config,
+            concurrent=settings.concurrent,
         )
 
 

@@ -24,7 +24,7 @@ RUNS_FILE = "runs.jsonl"
 COMPRESSED_RUNS_FILES = ("runs.jsonl.xz", "runs.jsonl.gz")
 ERRORS_FILE = "errors.jsonl"
 CONFIG_FILE = "bench.json"
-PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}}
+PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}, "concurrent": 1}
 """A setting a directory made before it was pinned holds at this value."""
 
 

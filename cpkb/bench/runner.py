@@ -1,5 +1,10 @@
 """Run scenarios on a pool of worker processes, each in a fresh knowledge base.
 
+With `concurrent=N`, the runs of a cell go N at a time into one fresh knowledge base (seeds in
+blocks of N, in the cell's seed order): the members of a group are dispatched one after the
+other and wait for each other at a barrier, so that they plan at once and learn from each other
+while they run; each record names its `group`.
+
 The run function is a parameter (any picklable callable with `run_plan`'s signature), so the
 pool, resumability and time limit work the same for the real planner and for small planners.
 Workers are spawned (not forked: torch and PyBullet do not survive a fork well) and each
@@ -10,14 +15,17 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import itertools
 import multiprocessing
 import os
 import re
+import threading
 import time
 import traceback
 import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from multiprocessing.managers import SyncManager
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -32,6 +40,26 @@ With planner knobs set, `extra` has `config`: their dotted overrides (`planner.c
 
 REQUIRED_FIELDS = ("solved", "rollouts", "wall_s")
 KB_NAME_MAX = 64
+START_TOGETHER_S = 600.0  # the longest a group's run waits for the rest to start
+
+
+def _kb_name(prefix: str, task: str, method: str, tail: str) -> str:
+    """Readable and unique within the bench; within the service's 64 safe characters."""
+    readable = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{prefix}-{task}-{method}-{tail}")
+    if len(readable) <= KB_NAME_MAX:
+        return readable
+    digest = hashlib.sha1(f"{task}/{method}".encode()).hexdigest()[:12]
+    return f"{prefix}-{digest}-{tail}"
+
+
+@dataclass(frozen=True)
+class Group:
+    """Runs of one cell planning at once on one knowledge base, created and deleted by the
+    bench process; `barrier` (a manager's, shared by the workers) starts them together."""
+
+    kb_name: str
+    size: int
+    barrier: Any
 
 
 class KbService(Protocol):
@@ -60,18 +88,14 @@ class Job:
     predecessor_rollouts: int
     predecessor_kwargs: Mapping[str, Any] = field(default_factory=dict)
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
+    group: Group | None = None
 
     @property
     def kb_name(self) -> str:
-        """Readable and unique within the bench; within the service's 64 safe characters."""
+        if self.group is not None:
+            return self.group.kb_name
         s = self.scenario
-        readable = re.sub(
-            r"[^A-Za-z0-9_.-]", "_", f"{self.kb_prefix}-{s.task}-{s.method}-s{s.seed}"
-        )
-        if len(readable) <= KB_NAME_MAX:
-            return readable
-        digest = hashlib.sha1(f"{s.task}/{s.method}".encode()).hexdigest()[:12]
-        return f"{self.kb_prefix}-{digest}-s{s.seed}"
+        return _kb_name(self.kb_prefix, s.task, s.method, f"s{s.seed}")
 
 
 @dataclass
@@ -126,8 +150,11 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
     s = job.scenario
     started = time.perf_counter()
     created = False
+    together = None
     try:
-        if job.kb_service is not None:
+        if job.group is not None:
+            together = _start_together(job.group)
+        elif job.kb_service is not None:
             job.kb_service.create(job.kb_name)
             created = True
         predecessors = []
@@ -167,6 +194,10 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             scenario_wall_s=time.perf_counter() - started,
             worker_pid=os.getpid(),
         )
+        if job.group is not None:
+            record.update(
+                group=job.group.kb_name, concurrent=job.group.size, started_together=together
+            )
         return True, record
     except Exception as exc:  # a failed run is reported and retried by a rerun, not fatal
         return False, {
@@ -180,6 +211,32 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
         if created and job.kb_service is not None:
             with contextlib.suppress(Exception):  # leftovers go by prefix at the end
                 job.kb_service.delete(job.kb_name)
+
+
+def _start_together(group: Group) -> bool:
+    """Wait for the group's other runs; False if they did not all come (one failed to start):
+    this run goes on alone rather than wait for ever."""
+    try:
+        group.barrier.wait(START_TOGETHER_S)
+        return True
+    except threading.BrokenBarrierError:
+        return False
+
+
+def _grouped(
+    scenarios: Sequence[Scenario], pending: Sequence[Scenario], concurrent: int
+) -> list[list[Scenario]]:
+    """The pending runs in groups of at most `concurrent` per cell (blocks of the cell's seeds
+    among all `scenarios`, so that a rerun keeps the groups), in the order they come first."""
+    block: dict[tuple[str, str, int], tuple[str, str, int]] = {}
+    cells = itertools.groupby(sorted(scenarios), key=lambda s: (s.task, s.method))
+    for (task, method), members in cells:
+        for i, s in enumerate(members):
+            block[s.key] = (task, method, i // concurrent)
+    groups: dict[tuple[str, str, int], list[Scenario]] = {}
+    for s in pending:
+        groups.setdefault(block[s.key], []).append(s)
+    return list(groups.values())
 
 
 def _init_worker(bench_pid: int) -> None:
@@ -225,22 +282,29 @@ def run_bench(
     time_limit_s: float | None = None,
     progress: Progress | None = None,
     config: Mapping[str, Any] | None = None,
+    concurrent: int = 1,
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
-    rollout caps, since results under other knobs are another variant.
+    rollout caps, since results under other knobs are another variant. `concurrent`: the runs
+    of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers).
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
     recorded; a rerun with the same `out_dir` picks up exactly where this one stopped.
     """
-    if workers < 1:
-        raise ValueError("workers must be at least 1")
+    if workers < 1 or concurrent < 1:
+        raise ValueError("workers and concurrent must be at least 1")
+    if concurrent > 1 and any(s.predecessors for s in scenarios):
+        raise ValueError("concurrent runs do not take predecessors: leave out cp-bo-transfer")
+    if concurrent > 1 and kb_service is None:
+        raise ValueError("concurrent runs share a knowledge base: they need a service")
     store = ResultStore(out_dir)
     store.pin_config(
         {
             "max_rollouts": max_rollouts,
             "predecessor_rollouts": predecessor_rollouts,
             "config": dict(config or {}),
+            "concurrent": concurrent,
         }
     )
     pending = store.pending(list(scenarios))
@@ -248,28 +312,52 @@ def run_bench(
     if not pending:
         return outcome
     prefix = f"bench-{uuid.uuid4().hex[:8]}"
-    jobs = [
-        Job(
-            s,
-            run_fn,
-            kb_service,
-            prefix,
-            max_rollouts,
-            predecessor_rollouts,
-            dict(predecessor_kwargs or {}),
-            dict(config or {}),
-        )
-        for s in pending
-    ]
+    context = multiprocessing.get_context("spawn")
+    manager = None
+    if concurrent > 1:
+        manager = SyncManager(ctx=context)
+        manager.start(_init_worker, (os.getpid(),))  # it too leaves with the bench process
+    jobs: list[Job] = []
+    open_groups: dict[tuple[str, str, int], Group] = {}
+    for members in _grouped(scenarios, pending, concurrent) if manager else [[s] for s in pending]:
+        group = None
+        if manager is not None:
+            first = members[0]
+            name = _kb_name(prefix, first.task, first.method, f"g{first.seed}")
+            group = Group(name, len(members), manager.Barrier(len(members)))
+            open_groups.update({s.key: group for s in members})
+        jobs += [
+            Job(
+                s,
+                run_fn,
+                kb_service,
+                prefix,
+                max_rollouts,
+                predecessor_rollouts,
+                dict(predecessor_kwargs or {}),
+                dict(config or {}),
+                group,
+            )
+            for s in members
+        ]
     deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
     bar = progress or NoProgress()
     bar.start(len(jobs))
-    context = multiprocessing.get_context("spawn")
-    pool = context.Pool(min(workers, len(jobs)), initializer=_init_worker, initargs=(os.getpid(),))
-    results = pool.imap_unordered(execute, jobs, chunksize=1)
+    pool_size = min(max(workers, concurrent), len(jobs))
+    pool = context.Pool(pool_size, initializer=_init_worker, initargs=(os.getpid(),))
+    left = {g.kb_name: g.size for g in open_groups.values()}
     try:
+        for name in left if kb_service is not None else ():
+            kb_service.create(name)
+        results = pool.imap_unordered(execute, jobs, chunksize=1)
         for _ in range(len(jobs)):
             ok, record = _next_result(results, deadline)
+            done = open_groups.get((record["task"], record["method"], int(record["seed"])))
+            if done is not None and kb_service is not None:
+                left[done.kb_name] -= 1
+                if not left[done.kb_name]:
+                    with contextlib.suppress(Exception):  # leftovers go by prefix at the end
+                        kb_service.delete(done.kb_name)
             if ok:
                 store.append_run(record)
                 outcome.finished += 1
@@ -289,8 +377,11 @@ def run_bench(
     finally:
         pool.terminate()
         pool.join()
+        if manager is not None:
+            manager.shutdown()
         bar.stop()
-        if kb_service is not None and (outcome.timed_out or outcome.interrupted):
+        leftovers = outcome.timed_out or outcome.interrupted or any(left.values())
+        if kb_service is not None and leftovers:
             # The service may be gone with the interrupt; nothing of value is in those KBs.
             with contextlib.suppress(Exception):
                 kb_service.delete_prefix(prefix)

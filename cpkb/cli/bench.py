@@ -90,6 +90,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--workers", type=_positive_int, default=os.cpu_count() or 1, help="worker processes"
     )
+    parser.add_argument(
+        "--concurrent",
+        type=_positive_int,
+        default=1,
+        metavar="N",
+        help="plan the runs of a cell N at a time on one fresh knowledge base (seeds "
+        "first..first+N-1 share one, the next N the next; at least N workers); each run's "
+        "record names its group; default 1: each run alone",
+    )
     parser.add_argument("--out", default="bench-out", help="results directory (resumable)")
     parser.add_argument(
         "--kb-url",
@@ -162,6 +171,7 @@ def handle(args: argparse.Namespace) -> int:
         summary_only=args.summary_only,
         quiet=args.quiet,
         config=config_overrides(args),
+        concurrent=args.concurrent,
     )
     try:
         if args.kb_url is not None and not args.summary_only:
