@@ -53,8 +53,10 @@ class OptimizerConfig:
     pop_size: int = SurrogateConfig.pop_size
     n_gen: int = SurrogateConfig.generations
     raw_samples: int = SurrogateConfig.raw_samples
-    margin: float = 0.0  # > 0: the most spread candidate within this fraction of the best value
-    margin_abs: float = 0.0  # ... or within this much of it: near-equal tiny P(feasible) ties
+    # > 0: the most spread candidate within this fraction of the best value, or within
+    # `margin_abs` of it (near-equal tiny P(feasible) ties), rather than the argmax itself.
+    margin: float = SurrogateConfig.mpf_margin
+    margin_abs: float = SurrogateConfig.mpf_margin_abs
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
