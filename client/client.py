@@ -55,8 +55,8 @@ DEFAULT_URL = "http://127.0.0.1:8000"
 
 @cache
 def _tls_context() -> ssl.SSLContext:
-    """httpx's default verifying context, built once per process: building it reads the CA
-    bundle (36 ms measured), and a planner opens a client per run."""
+    """httpx's default verifying context, built once per process: building it reads the whole
+    CA bundle, and a planner opens a client per run."""
     return httpx.create_ssl_context()
 
 
@@ -256,7 +256,7 @@ class CpkbClient:
     def get_type(self, kb: str, type_id: str) -> TypeDetail:
         return self._call(TypeDetail, "GET", f"/v1/kbs/{kb}/types/{type_id}")
 
-    # -- surrogates (issue 3) ----------------------------------------------------------------
+    # -- surrogates ---------------------------------------------------------------------------
     def suggest(self, kb: str, request: SuggestIn | Mapping[str, Any]) -> SuggestOut:
         """The MPF suggestion for a search space (see SuggestIn); safe to retry (reads only)."""
         model = request if isinstance(request, SuggestIn) else SuggestIn.model_validate(request)

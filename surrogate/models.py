@@ -280,8 +280,9 @@ def fit_classifier(
 ) -> Fit:
     """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible).
 
-    100 Adam steps at 0.1 reach the held-out accuracy of 300 at 0.05 in a third of the time
-    (measured at n = 25, 60, 150): a transfer target waits for its predecessors' fits.
+    The default steps and rate are the cheapest that reach the held-out accuracy of a longer,
+    slower fit (BENCHMARKS.md, "Measurements behind the defaults"): a transfer target waits for
+    its predecessors' fits.
 
     A `warm` fit of the same kind starts the optimiser from its hyper-parameters, inducing
     locations and variational posterior (when the inducing count is unchanged), so a refit after

@@ -1,7 +1,7 @@
 """MPF suggestions in the planner's own process, from the service's model snapshots.
 
-A rollout costs 10-20 ms of simulation; a suggestion from the service cost 40-60 ms, most of it
-waiting for a CPU that three planners and the fit worker share. The models themselves are small
+A rollout costs little simulation time; a round trip to the service costs more than a rollout
+when planners and the fit worker share the CPU. The models themselves are small
 (a variational GP is its inducing points and two cached terms), so the planner fetches each
 type's current predictor (`POST /v1/kbs/{kb}/models`) and maximises MPF itself, with the same
 code (`surrogate.suggest.suggest`) and optimiser settings as the service: this module keeps only
@@ -10,8 +10,8 @@ surrogate library's types at its edge. Between fetches the points this planner p
 at once (`RecentPoints`), as they would in the service, and so do other planners' points that
 the session's live feed brings (`learn`, `planner.knowledge.live`); a model is
 fetched anew once its type has new points and `refresh_rollouts` rollouts have passed, and only
-if its version changed. Such a refresh runs in the background: the fetch costs 5-80 ms on a busy
-machine (the service encodes every changed fit), and the model in hand, with this planner's own
+if its version changed. Such a refresh runs in the background (the service encodes every
+changed fit, which costs it time on a busy machine), and the model in hand, with this planner's own
 points, is good until the next one lands. A type with no model yet is fetched at once, unless
 this planner is creating it: then it starts from the stated prior on its own points, as the
 service would serve it.

@@ -87,9 +87,8 @@ class CpBoSampler:
         """This node's batch without the points since tried; asked anew when it is used up,
         older than `batch_max_age` rollouts, or the node's constraints changed (a type became
         active here or on the later decisions it looks ahead to: a batch that kept its points
-        when only a later type was new cost regrasp and pack transfer a quarter more rollouts,
-        `benchmarks/results/paper7R`). None where no type is active or the service cannot
-        answer."""
+        when only a later type was new would go on ignoring that type; BENCHMARKS.md has the
+        measurement). None where no type is active or the service cannot answer."""
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if not constraints:
             return None
