@@ -163,13 +163,16 @@ class KnowledgeConfig:
     the same seed on a fresh knowledge base gives the same run, at the cost of the waits."""
     fit_wait_s: float = 120.0
     """The longest wait for one refit in deterministic mode (then the run goes on, noted)."""
-    grasp_symmetry: bool = True
-    """A grasp holding a body being placed is encoded by the body's symmetries: opposite faces
-    of a box alike, all side faces alike for a square footprint (`planner.failures.graphs`);
-    the paper encodes the grasp as declared."""
-    metric_frames: bool = True
+    square_grasps: bool = True
+    """A grasp holding a body with a square footprint being placed is encoded with all its side
+    grasps as one (`planner.failures.graphs`); the paper encodes the grasp as declared."""
+    grasp_symmetry: bool = False
+    """A grasp holding any box being placed is encoded with opposite faces alike (front and
+    back, right and left). Off: on the development suite it did not lower the rollouts."""
+    metric_frames: bool = False
     """A placement's relative pose to another in its region is measured in metres, from the
-    region's and the body's extents (`surrogate.encoding`), not in seed units."""
+    region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
+    development suite's pack tasks it took more rollouts."""
     live_points: bool = False
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
@@ -232,6 +235,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.outlook_widening": False,
             "search.outlook_selection": False,
             "search.hopeless_widening": False,
+            "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
         },

@@ -24,7 +24,8 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   faces of a box (front and back, right and left) put the same hand pose over the same
   footprint turned half a turn, which a box cannot tell apart: they are one. Where the
   footprint is square (within `SQUARE_TOLERANCE`) all four side grasps are one (all 60 shelf
-  placements tried with `front` and `right` agreed). The top grasp stays apart.
+  placements tried with `front` and `right` agreed). The top grasp stays apart. Switches:
+  `square_grasps` (square footprints), `grasp_symmetry` (opposite faces of any box).
 - A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
   the relative pose of two placements is measured in metres (`surrogate.encoding`).
 """
@@ -51,6 +52,7 @@ class Encodings:
     domains as the skeleton declares them (the paper's encoding)."""
 
     geometry: WorldGeometry = field(default_factory=WorldGeometry)
+    square_grasps: bool = True
     grasp_symmetry: bool = True
     metric_frames: bool = True
 
@@ -185,13 +187,15 @@ def encoded_domains(
     """The domains the decisions of a graph failing at `call` are encoded with."""
     geometry = encodings.geometry
     footprint = geometry.footprint(call.args[0]) if call.args else None
-    held = held_grasps(skeleton, call) if encodings.grasp_symmetry and footprint else frozenset()
+    square = footprint is not None and is_square(footprint) and encodings.square_grasps
+    symmetric = square or (footprint is not None and encodings.grasp_symmetry)
+    held = held_grasps(skeleton, call) if symmetric else frozenset()
     out: dict[str, Domain] = {}
     for var, decision in chosen.items():
         domain = decision.domain
         extents = geometry.extents(var)
-        if var in held and isinstance(domain, CategoricalDomain) and footprint is not None:
-            domain = held_grasp_domain(domain, is_square(footprint))
+        if var in held and isinstance(domain, CategoricalDomain):
+            domain = held_grasp_domain(domain, square)
         elif (
             encodings.metric_frames
             and extents is not None

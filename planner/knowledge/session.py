@@ -156,7 +156,10 @@ class KnowledgeSession:
         self.stats = KnowledgeStats()
         self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
         self._encodings = Encodings(
-            world.geometry, self.config.grasp_symmetry, self.config.metric_frames
+            world.geometry,
+            square_grasps=self.config.square_grasps,
+            grasp_symmetry=self.config.grasp_symmetry,
+            metric_frames=self.config.metric_frames,
         )
         self._graphs = _task_graphs(repr(self.skeleton), self._encodings)
         self._active: dict[Key, Activation] = {}

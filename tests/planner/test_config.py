@@ -106,7 +106,8 @@ def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
     assert paper.cp_bo.batch == 1
     search = paper.search
     assert not (search.outlook_widening or search.outlook_selection or search.hopeless_widening)
-    assert not (paper.knowledge.grasp_symmetry or paper.knowledge.metric_frames)
+    knowledge = paper.knowledge
+    assert not (knowledge.square_grasps or knowledge.grasp_symmetry or knowledge.metric_frames)
     assert search.pw_k == 7.0  # a knob the paper does not fix stays the caller's
     assert method_config("cp-bo", asked) == asked
     assert PlanRequest("analytic:desk", "cp-bo-paper", 0).config == method_config("cp-bo-paper")

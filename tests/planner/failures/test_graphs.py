@@ -224,6 +224,19 @@ def test_grasps_keep_their_declared_encoding_where_no_placement_or_switched_off(
     assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik)) == GRASP_DOMAIN  # no geometry
     off = with_footprint((0.04, 0.08), grasp_symmetry=False)
     assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, encodings=off)) == GRASP_DOMAIN
+    square_off = with_footprint((0.06, 0.06), square_grasps=False, grasp_symmetry=False)
+    assert grasp_domain_of(failure_graph(skeleton, 3, shelf_ik, encodings=square_off)) == (
+        GRASP_DOMAIN
+    )
+    square_only = with_footprint((0.06, 0.06), grasp_symmetry=False)
+    assert (
+        len(
+            set(
+                encoded_grasps(failure_graph(skeleton, 3, shelf_ik, encodings=square_only)).values()
+            )
+        )
+        == 2
+    )  # sides and top
 
 
 def test_a_framed_placement_gets_its_half_extents_in_metres():
