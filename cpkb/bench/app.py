@@ -19,8 +19,8 @@ from cpkb.bench.plots import write_plots
 from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
-from cpkb.bench.scenarios import TRANSFER_METHOD, expand, predecessors
-from cpkb.bench.stats import HEADERS, summarize, table_rows, write_summary
+from cpkb.bench.scenarios import TRANSFER_METHOD, expand, predecessors, task_kinds
+from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
 
 
 @dataclass(frozen=True)
@@ -126,6 +126,10 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
     records = ResultStore(out_dir).records()
     rows = summarize(records, settings.tasks, settings.methods)
     paths = write_summary(rows, out_dir)
+    kinds = task_kinds({r["task"] for r in records})
+    if len(kinds) > len(set(kinds.values())):
+        by_kind = summarize_by_kind(records, kinds, settings.methods)
+        paths += write_summary(by_kind, out_dir, name="summary_by_kind")
     paths += write_plots(records, out_dir, settings.tasks, settings.methods)
     table = Table(*HEADERS, title=f"cpkb bench: {len(records)} runs in {out_dir}")
     for cells in table_rows(rows):

@@ -65,6 +65,24 @@ def predecessors(task: str) -> tuple[str, ...]:
     return load_task(task).predecessors
 
 
+def task_kinds(tasks: Iterable[str]) -> dict[str, str]:
+    """The declared `kind` of each task that has one (a generated suite's desk, regrasp and
+    pack); tasks that cannot be loaded or declare none are left out."""
+    from planner.tasks import load_task
+
+    kinds = {}
+    for task in tasks:
+        if task.startswith(ANALYTIC_PREFIX):
+            continue
+        try:
+            kind = load_task(task).kind
+        except (ValueError, OSError):
+            continue
+        if kind:
+            kinds[task] = kind
+    return kinds
+
+
 def expand(tasks: Sequence[str], methods: Sequence[str], seeds: Iterable[int]) -> list[Scenario]:
     """Every (task, method, seed), seed-major; `cp-bo-transfer` needs a task with predecessors."""
     for task in tasks:

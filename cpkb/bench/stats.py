@@ -8,6 +8,7 @@ below 1. Wall time is the time the run took, solved or not.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
@@ -137,6 +138,20 @@ def summarize(
     return rows
 
 
+def summarize_by_kind(
+    records: Iterable[Mapping[str, Any]],
+    kinds: Mapping[str, str],
+    methods: Sequence[str] = (),
+) -> list[CellSummary]:
+    """One row per (task kind, method), pooling every task of a kind (`kinds`: task -> kind):
+    a generated suite is judged by kind, each kind's targets and seeds together, since one
+    target's handful of seeds says little."""
+    pooled = [{**r, "task": kinds[r["task"]]} for r in records if r["task"] in kinds]
+    rows = summarize(pooled, sorted(set(kinds.values())), methods)
+    # The paper's figures are for its own tasks, not for a kind of generated ones.
+    return [dataclasses.replace(row, paper_reduction_pct=None) for row in rows]
+
+
 def _fmt(value: float | None, spec: str, suffix: str = "") -> str:
     return "-" if value is None else f"{value:{spec}}{suffix}"
 
@@ -202,13 +217,15 @@ def markdown_table(rows: Sequence[CellSummary]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_summary(rows: Sequence[CellSummary], out_dir: Path | str) -> list[Path]:
+def write_summary(
+    rows: Sequence[CellSummary], out_dir: Path | str, name: str = "summary"
+) -> list[Path]:
     """`summary.md` (the table) and `summary.csv` (full precision)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    md = out / "summary.md"
+    md = out / f"{name}.md"
     md.write_text(markdown_table(rows), encoding="utf-8")
-    path_csv = out / "summary.csv"
+    path_csv = out / f"{name}.csv"
     fields = list(CellSummary.__dataclass_fields__)
     with path_csv.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)

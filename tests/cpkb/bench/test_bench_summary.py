@@ -120,3 +120,31 @@ def test_summary_only_rebuilds_the_table_from_compressed_runs(tmp_path: Path) ->
     assert "| desk | cp-bo-transfer | 20 | 100% |" in table
     assert (out / "rollouts.png").stat().st_size > 5000
     assert not (out / "runs.jsonl").exists()
+
+
+def test_a_suite_is_summarised_by_kind_pooling_its_targets() -> None:
+    from cpkb.bench.stats import summarize_by_kind
+
+    records = (
+        _records("a/desk.yaml", "quasi-random", [10, 30])
+        + _records("b/desk.yaml", "quasi-random", [50, 70])
+        + _records("a/desk.yaml", "cp-bo-transfer", [1, 3])
+        + _records("b/desk.yaml", "cp-bo-transfer", [5, 7])
+        + _records("a/pack.yaml", "quasi-random", [8, 8])
+    )
+    kinds = {"a/desk.yaml": "desk", "b/desk.yaml": "desk", "a/pack.yaml": "pack"}
+    rows = {(r.task, r.method): r for r in summarize_by_kind(records, kinds)}
+    transfer = rows[("desk", "cp-bo-transfer")]
+    assert transfer.n == 4 and rows[("desk", "quasi-random")].n == 4
+    assert transfer.reduction_pct == pytest.approx(100 * (40 - 4) / 40)
+    assert transfer.paper_reduction_pct is None
+    assert rows[("pack", "quasi-random")].rollouts_mean == pytest.approx(8)
+
+
+def test_generated_targets_are_known_by_their_declared_kind() -> None:
+    from cpkb.bench.scenarios import task_kinds
+
+    suite = Path(__file__).resolve().parents[3] / "benchmarks" / "suites" / "dev"
+    targets = sorted(str(p) for p in suite.glob("ws0*/desk.yaml"))[:2]
+    kinds = task_kinds([*targets, "analytic:desk", "no-such-task"])
+    assert kinds == dict.fromkeys(targets, "desk")
