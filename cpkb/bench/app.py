@@ -45,9 +45,8 @@ class BenchSettings:
 def plan_run(
     task: str, method: str, seed: int, config: Mapping[str, Any] | None = None, **kwargs: Any
 ) -> object:
-    """The real planner run (the bench's default run function), with every sampler registered;
+    """The real planner run (the bench's default run function);
     `config`: the dotted overrides of the planner's knobs."""
-    import planner.search.samplers.optuna_tpe  # noqa: F401 - registers `optuna-tpe`
     from planner.config import PlanConfig
     from planner.run import run_plan
 
@@ -56,7 +55,6 @@ def plan_run(
 
 def known_methods() -> set[str]:
     import planner.search.samplers as samplers
-    import planner.search.samplers.optuna_tpe  # noqa: F401
 
     return set(samplers.methods()) | {TRANSFER_METHOD}
 

@@ -136,3 +136,10 @@ def test_plan_desk_with_cp_bo_end_to_end(tmp_path: Path):
     assert result["solved"] and result["task"] == "desk" and result["method"] == "cp-bo"
     assert result["points_posted"] >= result["rollouts"] - 1 and result["types_active"] >= 1
     assert result["wall_s"] >= result["sim_s"] > 0 and result["kb_s"] > 0
+
+
+def test_plan_names_every_method_the_planner_knows() -> None:
+    from cpkb.cli.planning import METHODS
+    from planner.search import samplers
+
+    assert sorted(METHODS) == samplers.methods()

@@ -27,7 +27,7 @@ def register(method: str, factory: SamplerFactory, *, uses_knowledge: bool = Fal
 
 
 def _load_builtins() -> None:
-    from planner.search.samplers import cp_bo, mcts_bo, quasi_random  # noqa: F401
+    from planner.search.samplers import cp_bo, mcts_bo, optuna_tpe, quasi_random  # noqa: F401
 
 
 def methods() -> list[str]:
