@@ -49,7 +49,13 @@ def register(subparsers: Any) -> None:
 
 
 def _client_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--url", help="service URL (default: CPKB_URL or http://127.0.0.1:8000)")
+    parser.add_argument(
+        "--kb-url",
+        "--url",
+        dest="url",
+        help="service URL, as `cpkb plan --kb-url` takes it (default: CPKB_URL or "
+        "http://127.0.0.1:8000)",
+    )
     parser.add_argument("--token", help="access token (default: CPKB_TOKEN)")
 
 
@@ -181,7 +187,7 @@ def _run(args: argparse.Namespace, call: Any) -> Any:
             if exc.status is None:
                 raise CliError(
                     f"cannot reach the knowledge base at {client.base_url} "
-                    "(start it with `cpkb serve`, or pass --url)"
+                    "(start it with `cpkb serve`, or pass --kb-url)"
                 ) from exc
             raise CliError(str(exc.detail)) from exc
         except CpkbError as exc:

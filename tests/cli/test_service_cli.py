@@ -41,7 +41,7 @@ def test_points_survive_a_restart_and_show_in_cpkb_types(db_url: str, tmp_path: 
             assert sorted(r.point_id for r in posted) == sorted(
                 p.point_id for ps in points_before.values() for p in ps
             )
-        table = cpkb("types", "--kb", "lab", "--url", server.url)
+        table = cpkb("types", "--kb", "lab", "--kb-url", server.url)
         assert table.returncode == 0, table.stderr
         assert "Plan-motion" in table.stdout and "Inv-kin" in table.stdout
         assert "box2" in table.stdout and "15" in table.stdout
