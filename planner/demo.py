@@ -8,8 +8,12 @@ side, with where to look next.
 
 from __future__ import annotations
 
+import os
+import shutil
 import statistics
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from rich.console import Console
@@ -77,18 +81,31 @@ def run_demo(
         else ""
     )
     last_kb = rows[-1][1]
-    serve = f"cpkb serve --db {db}" if db else "cpkb serve"
+    cpkb = _command()
+    serve = f"{cpkb} serve --db {db}" if db else f"{cpkb} serve"
     url = kb_url or "http://127.0.0.1:8000"
     out.print(
         "\n[bold]Where to look next[/]\n"
         f"  {serve + ', then ' if kb_url is None else ''}open {url}/ "
         "(types, causal graphs, points, feasibility maps)\n"
-        f"  cpkb types --url {url} --kb {last_kb}   the constraint types deskP and desk learned\n"
-        f"  cpkb plan --task regrasp --method cp-bo --kb-url {url} --kb {last_kb}\n"
-        "  cpkb bench --tasks desk --methods quasi-random,cp-bo,cp-bo-transfer --seeds 20 "
+        f"  {cpkb} types --kb-url {url} --kb {last_kb}   the types deskP and desk learned\n"
+        f"  {cpkb} plan --task regrasp --method cp-bo --kb-url {url} --kb {last_kb}\n"
+        f"  {cpkb} bench --tasks desk --methods quasi-random,cp-bo,cp-bo-transfer --seeds 20 "
         "--out bench-out"
     )
     return 0 if all(r[3].solved and r[4].solved for r in rows) else 1
+
+
+def _command() -> str:
+    """`cpkb` as this shell can run it: the bare name where it is on PATH (an active venv),
+    else the path of the program that is running (`make demo` runs `.venv/bin/cpkb`)."""
+    running = Path(sys.argv[0]).resolve()
+    on_path = shutil.which("cpkb")
+    if on_path is not None and Path(on_path).resolve() == running:
+        return "cpkb"
+    if running.name == "cpkb":
+        return os.path.relpath(running) if running.is_relative_to(Path.cwd()) else str(running)
+    return "cpkb"
 
 
 def _table(rows: list[tuple[int, str, PlanResult, PlanResult, PlanResult]]) -> Table:

@@ -143,3 +143,18 @@ def test_plan_names_every_method_the_planner_knows() -> None:
     from planner.search import samplers
 
     assert sorted(METHODS) == samplers.methods()
+
+
+def test_the_demo_names_cpkb_as_this_shell_can_run_it(monkeypatch, tmp_path):
+    from planner.demo import _command
+
+    program = tmp_path / ".venv" / "bin" / "cpkb"
+    program.parent.mkdir(parents=True)
+    program.write_text("")
+    program.chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", [str(program), "demo"])
+    monkeypatch.setenv("PATH", "/usr/bin:/bin")
+    assert _command() == ".venv/bin/cpkb"
+    monkeypatch.setenv("PATH", f"{program.parent}:/usr/bin:/bin")
+    assert _command() == "cpkb"
