@@ -7,6 +7,7 @@ import os
 import re
 
 from cpkb.cli import CliError
+from cpkb.cli.argtypes import non_negative_int, positive_int
 from cpkb.cli.config_args import add_config_arguments, config_overrides
 from cpkb.cli.reach import EXIT_STATUS_HELP, probe
 
@@ -21,26 +22,6 @@ def _csv_list(text: str) -> list[str]:
     if len(set(items)) != len(items):
         raise argparse.ArgumentTypeError(f"a name is repeated in {text!r}")
     return items
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
-    return value
 
 
 _DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smh]?)\s*$")
@@ -85,14 +66,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "30 rollouts each, in the same knowledge base) and cp-bo-paper (the paper's CP-BO: "
         f"cp-bo with every extension off); default {DEFAULT_METHODS}",
     )
-    parser.add_argument("--seeds", type=_positive_int, default=100, help="seeds per cell")
-    parser.add_argument("--first-seed", type=_non_negative_int, default=0)
+    parser.add_argument("--seeds", type=positive_int, default=100, help="seeds per cell")
+    parser.add_argument("--first-seed", type=non_negative_int, default=0)
     parser.add_argument(
-        "--workers", type=_positive_int, default=os.cpu_count() or 1, help="worker processes"
+        "--workers", type=positive_int, default=os.cpu_count() or 1, help="worker processes"
     )
     parser.add_argument(
         "--concurrent",
-        type=_positive_int,
+        type=positive_int,
         default=1,
         metavar="N",
         help="plan the runs of a cell N at a time on one fresh knowledge base (seeds "
@@ -114,8 +95,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="where cp-bo maximises MPF: in each planner from the service's model snapshots "
         "(default), or in the service",
     )
-    parser.add_argument("--max-rollouts", type=_positive_int, default=2000)
-    parser.add_argument("--predecessor-rollouts", type=_positive_int, default=30)
+    parser.add_argument("--max-rollouts", type=positive_int, default=2000)
+    parser.add_argument("--predecessor-rollouts", type=positive_int, default=30)
     parser.add_argument(
         "--time-limit",
         type=parse_duration,

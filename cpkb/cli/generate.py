@@ -8,16 +8,7 @@ import sys
 from pathlib import Path
 
 from cpkb.cli import CliError
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+from cpkb.cli.argtypes import positive_int
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -34,13 +25,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("--out", type=Path, required=True, help="the suite's directory")
-    parser.add_argument("--workspaces", type=_count, default=4, help="how many (default 4)")
+    parser.add_argument("--workspaces", type=positive_int, default=4, help="how many (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="the suite's seed (default 0)")
     parser.add_argument(
-        "--probe-seeds", type=_count, default=3, help="quasi-random runs per target (default 3)"
+        "--probe-seeds",
+        type=positive_int,
+        default=3,
+        help="quasi-random runs per target (default 3)",
     )
     parser.add_argument(
-        "--probe-rollouts", type=_count, default=500, help="each probe's budget (default 500)"
+        "--probe-rollouts", type=positive_int, default=500, help="each probe's budget (default 500)"
     )
     parser.add_argument(
         "--no-check", action="store_true", help="skip the probes (the layouts are unchecked)"

@@ -12,7 +12,6 @@ from fastapi.testclient import TestClient
 from service_support import make_point
 
 from server.app import create_app
-from server.hooks import ServiceHooks
 from server.settings import Settings
 
 KB = "/v1/kbs/lab"
@@ -24,15 +23,6 @@ def fitting(db_url: str) -> Iterator[TestClient]:
     """A service that fits (in a thread) and checks a type's points on every request."""
     settings = Settings(database_url=db_url, surrogate_fit_process=False, surrogate_refresh_s=0)
     with TestClient(create_app(settings)) as client:
-        yield client
-
-
-@pytest.fixture
-def other(db_url: str) -> Iterator[TestClient]:
-    """A second service on the same database, without a surrogate engine."""
-    app = create_app(Settings(database_url=db_url))
-    app.state.hooks.__dict__.update(ServiceHooks().__dict__)
-    with TestClient(app) as client:
         yield client
 
 
@@ -71,8 +61,9 @@ def test_a_kb_deleted_here_and_created_again_starts_afresh(fitting: TestClient) 
 
 
 def test_a_kb_deleted_elsewhere_and_created_again_starts_afresh(
-    fitting: TestClient, other: TestClient
+    fitting: TestClient, core_client: TestClient
 ) -> None:
+    other = core_client  # a second service on the same database, without a surrogate engine
     type_id = learn_infeasible(fitting)
     assert other.delete(KB).status_code == 204
     assert other.post("/v1/kbs", json={"name": "lab"}).status_code == 201
