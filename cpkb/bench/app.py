@@ -19,7 +19,7 @@ from cpkb.bench.plots import write_plots
 from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
-from cpkb.bench.scenarios import TRANSFER_METHOD, expand, predecessors, task_kinds
+from cpkb.bench.scenarios import TRANSFER_METHODS, expand, predecessors, task_kinds
 from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
 
 
@@ -56,7 +56,7 @@ def plan_run(
 def known_methods() -> set[str]:
     import planner.search.samplers as samplers
 
-    return set(samplers.methods()) | {TRANSFER_METHOD}
+    return set(samplers.methods()) | set(TRANSFER_METHODS)
 
 
 def known_tasks() -> set[str]:
@@ -79,7 +79,7 @@ def check_request(settings: BenchSettings) -> None:
     if unknown_m:
         raise ValueError(f"unknown method {unknown_m[0]!r} (known: {', '.join(sorted(methods))})")
     needed = set(settings.tasks)
-    if TRANSFER_METHOD in settings.methods:
+    if any(m in TRANSFER_METHODS for m in settings.methods):
         needed |= {p for t in settings.tasks for p in predecessors(t)}
     missing_files = [t for t in needed if _is_task_file(t) and not Path(t).is_file()]
     if missing_files:

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from cpkb.bench.results import ResultStore
-from cpkb.bench.scenarios import TRANSFER_SAMPLER, Scenario
+from cpkb.bench.scenarios import Scenario
 from server.lifeline import exit_with_parent
 
 RunFn = Callable[..., Any]
@@ -159,9 +159,7 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             created = True
         predecessors = []
         for task in s.predecessors:
-            pre = _call(
-                job, task, TRANSFER_SAMPLER, job.predecessor_rollouts, **job.predecessor_kwargs
-            )
+            pre = _call(job, task, s.sampler, job.predecessor_rollouts, **job.predecessor_kwargs)
             predecessors.append(
                 {
                     k: pre.get(k)
@@ -294,8 +292,11 @@ def run_bench(
     """
     if workers < 1 or concurrent < 1:
         raise ValueError("workers and concurrent must be at least 1")
-    if concurrent > 1 and any(s.predecessors for s in scenarios):
-        raise ValueError("concurrent runs do not take predecessors: leave out cp-bo-transfer")
+    transfer = sorted({s.method for s in scenarios if s.predecessors})
+    if concurrent > 1 and transfer:
+        raise ValueError(
+            f"concurrent runs do not take predecessors: leave out {', '.join(transfer)}"
+        )
     if concurrent > 1 and kb_service is None:
         raise ValueError("concurrent runs share a knowledge base: they need a service")
     store = ResultStore(out_dir)

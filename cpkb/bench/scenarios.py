@@ -14,7 +14,12 @@ from dataclasses import dataclass
 TRANSFER_METHOD = "cp-bo-transfer"
 """Not a sampler: `cp-bo` on a knowledge base first filled by the task's predecessors."""
 
-TRANSFER_SAMPLER = "cp-bo"
+TRANSFER_METHODS: Mapping[str, str] = {
+    TRANSFER_METHOD: "cp-bo",
+    "cp-bo-paper-transfer": "cp-bo-paper",
+}
+"""Each transfer method and the method that runs its predecessors and then its target: the
+paper's CP-BO Transfer is `cp-bo-paper-transfer`, the extended system's `cp-bo-transfer`."""
 
 PAPER_METHODS = ("quasi-random", "mcts-bo", "cp-bo", TRANSFER_METHOD)
 PAPER_TASKS = ("desk", "regrasp", "pack")
@@ -40,12 +45,12 @@ class Scenario:
 
     @property
     def predecessors(self) -> tuple[str, ...]:
-        return predecessors(self.task) if self.method == TRANSFER_METHOD else ()
+        return predecessors(self.task) if self.method in TRANSFER_METHODS else ()
 
     @property
     def sampler(self) -> str:
-        """The planner method that searches the target task."""
-        return TRANSFER_SAMPLER if self.method == TRANSFER_METHOD else self.method
+        """The planner method that searches the predecessors and the target task."""
+        return TRANSFER_METHODS.get(self.method, self.method)
 
 
 @functools.lru_cache(maxsize=256)
@@ -84,11 +89,12 @@ def task_kinds(tasks: Iterable[str]) -> dict[str, str]:
 
 
 def expand(tasks: Sequence[str], methods: Sequence[str], seeds: Iterable[int]) -> list[Scenario]:
-    """Every (task, method, seed), seed-major; `cp-bo-transfer` needs a task with predecessors."""
+    """Every (task, method, seed), seed-major; a transfer method needs a task with predecessors."""
+    transfer = [m for m in methods if m in TRANSFER_METHODS]
     for task in tasks:
-        if TRANSFER_METHOD in methods and not predecessors(task):
+        if transfer and not predecessors(task):
             raise ValueError(
-                f"{TRANSFER_METHOD} has no predecessor tasks for {task!r}: declare them in its "
+                f"{transfer[0]} has no predecessor tasks for {task!r}: declare them in its "
                 "task file (`predecessors: [deskP, ../other/task.yaml]`)"
             )
     return [Scenario(t, m, s) for s in seeds for t in tasks for m in methods]

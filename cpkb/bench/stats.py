@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import mannwhitneyu
 
-from cpkb.bench.scenarios import BASELINE_METHOD, PAPER_REDUCTION_PERCENT, TRANSFER_METHOD
+from cpkb.bench.scenarios import BASELINE_METHOD, PAPER_REDUCTION_PERCENT, TRANSFER_METHODS
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ def summarize(
                     else None,
                     wall_p_value=_p_value(wall, base_wall) if vs_base else None,
                     paper_reduction_pct=PAPER_REDUCTION_PERCENT.get(task)
-                    if method == TRANSFER_METHOD
+                    if method in TRANSFER_METHODS
                     else None,
                     kb_error_runs=sum(1 for r in runs if r.get("kb_errors")),
                 )

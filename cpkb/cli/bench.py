@@ -63,8 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=_csv_list,
         default=_csv_list(DEFAULT_METHODS),
         help="samplers, plus cp-bo-transfer (cp-bo after the task's predecessors, "
-        "30 rollouts each, in the same knowledge base) and cp-bo-paper (the paper's CP-BO: "
-        f"cp-bo with every extension off); default {DEFAULT_METHODS}",
+        "30 rollouts each, in the same knowledge base), cp-bo-paper (the paper's CP-BO: "
+        "cp-bo with every extension off) and cp-bo-paper-transfer (the paper's CP-BO "
+        f"Transfer); default {DEFAULT_METHODS}",
     )
     parser.add_argument("--seeds", type=positive_int, default=100, help="seeds per cell")
     parser.add_argument("--first-seed", type=non_negative_int, default=0)

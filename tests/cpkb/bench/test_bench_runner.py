@@ -85,6 +85,25 @@ def test_pool_runs_every_scenario_once_with_predecessors_first(tmp_path: Path) -
     assert 1 <= len(pids) <= 2 and os.getpid() not in pids  # machine may start one late)
 
 
+def test_paper_transfer_runs_its_predecessors_and_target_with_the_paper_method(
+    tmp_path: Path,
+) -> None:
+    assert Scenario("pack", "cp-bo-paper-transfer", 0).sampler == "cp-bo-paper"
+    log = tmp_path / "calls.jsonl"
+    run = functools.partial(toy_run, log_path=str(log))
+    scenarios = expand(["desk"], ["cp-bo-paper-transfer"], range(2))
+    outcome = run_bench(scenarios, tmp_path / "out", run, workers=1, max_rollouts=100)
+    assert (outcome.finished, outcome.errors) == (2, 0)
+    calls = _calls(log)
+    assert [(c["task"], c["method"]) for c in calls] == [
+        ("deskP", "cp-bo-paper"),
+        ("desk", "cp-bo-paper"),
+    ] * 2
+    records = ResultStore(tmp_path / "out").records()
+    assert {r["sampler"] for r in records} == {"cp-bo-paper"}
+    assert all([p["task"] for p in r["predecessors"]] == ["deskP"] for r in records)
+
+
 def test_rerun_skips_finished_runs_and_redoes_a_line_cut_short(tmp_path: Path) -> None:
     log = tmp_path / "calls.jsonl"
     run = functools.partial(toy_run, log_path=str(log))
