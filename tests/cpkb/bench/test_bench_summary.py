@@ -72,7 +72,7 @@ def test_cells_without_a_baseline_have_no_reduction_and_unknown_cells_come_last(
     assert all(r.reduction_pct is None and r.p_value is None for r in rows)
 
 
-def test_writes_table_files_and_png_plots(tmp_path: Path) -> None:
+def test_writes_table_files_and_plots(tmp_path: Path) -> None:
     records = (
         _records("desk", "quasi-random", QR)
         + _records("desk", "cp-bo", [5, 8, 13])
@@ -80,9 +80,13 @@ def test_writes_table_files_and_png_plots(tmp_path: Path) -> None:
     )
     rows = summarize(records)
     paths = write_summary(rows, tmp_path) + write_plots(records, tmp_path, ["desk", "pack"])
-    assert [p.name for p in paths] == ["summary.md", "summary.csv", "rollouts.png", "wall_time.png"]
+    assert [p.name for p in paths] == [
+        "summary.md",
+        "summary.csv",
+        *(f"{stem}.{fmt}" for stem in ("rollouts", "wall_time") for fmt in ("png", "svg", "pdf")),
+    ]
     assert (tmp_path / "summary.csv").read_text().startswith("task,method,n,solved_rate,")
-    for png in paths[2:]:
+    for png in (tmp_path / "rollouts.png", tmp_path / "wall_time.png"):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
 
 
