@@ -23,7 +23,7 @@ from typing import Any
 import httpx
 from pydantic import BaseModel, TypeAdapter
 
-from client.errors import CpkbError, ServiceUnavailable, error_for
+from client.errors import CpkbError, NotFound, ServiceUnavailable, error_for
 from client.models import (
     MAX_POINTS_PER_POST,
     Graph,
@@ -158,8 +158,15 @@ class CpkbClient:
         return self._call(Health, "GET", "/healthz")
 
     def create_kb(self, name: str, *, exist_ok: bool = False) -> KnowledgeBase:
-        """Create a knowledge base; with `exist_ok`, an existing one is returned instead."""
+        """Create a knowledge base; with `exist_ok`, an existing one is returned instead. That
+        case asks first, so that a planner's every run does not leave a 409 in the service's
+        metrics; a 409 still answers a creation racing another."""
         body = self._body(KnowledgeBaseIn(name=name))
+        if exist_ok:
+            try:
+                return self.get_kb(name)
+            except NotFound:
+                pass
         try:
             return self._call(KnowledgeBase, "POST", "/v1/kbs", json=body)
         except CpkbError as exc:

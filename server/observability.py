@@ -3,7 +3,12 @@
 Metrics live in one module-level registry so that the service, the surrogate engine and the
 middleware all count into the same series, however many apps a process creates (tests do).
 Every name starts with `cpkb_`. Routes are labelled by their template (`/v1/kbs/{kb}/points`),
-never by the concrete path, so that the number of series stays bounded.
+never by the concrete path, so that the number of series stays bounded; `_created` series are
+off, since they double the series count and say only when the process started.
+
+Suggest latency has two sources: the service times the suggests it answers, and planners that
+suggest in their own process (the default) may report each local suggestion's seconds in a
+point's `source.local_suggest_s`, which is counted once, when the post stores new points.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ import json
 import logging
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from typing import Any
 
@@ -23,12 +28,15 @@ from prometheus_client import (
     CollectorRegistry,
     Counter,
     Histogram,
+    disable_created_metrics,
     generate_latest,
 )
 from prometheus_client.core import GaugeMetricFamily
 from prometheus_client.registry import Collector
+from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+disable_created_metrics()
 REGISTRY = CollectorRegistry(auto_describe=True)
 
 # Latency buckets in seconds: from a cached read (~1 ms) to a slow cold fit on a busy machine.
@@ -51,6 +59,13 @@ HTTP_LATENCY = Histogram(
 SUGGEST_LATENCY = Histogram(
     "cpkb_suggest_duration_seconds",
     "Time to answer a suggest request (MPF acquisition), successful answers only.",
+    buckets=_LATENCY_BUCKETS,
+    registry=REGISTRY,
+)
+PLANNER_SUGGEST_LATENCY = Histogram(
+    "cpkb_planner_suggest_duration_seconds",
+    "Time a planner took for one suggestion in its own process, as it reported it with its "
+    "points (source.local_suggest_s).",
     buckets=_LATENCY_BUCKETS,
     registry=REGISTRY,
 )
@@ -86,6 +101,10 @@ FIT_POINTS = Histogram(
 )
 
 UNMATCHED_ROUTE = "<unmatched>"
+REPORTED_SUGGEST_KEY = "local_suggest_s"
+# A reported value outside this range, or past this many in one point, is not a timing.
+MAX_REPORTED_SUGGEST_S = 3600.0
+MAX_REPORTED_SUGGESTS = 256
 _access_log = logging.getLogger("cpkb.access")
 
 
@@ -95,6 +114,24 @@ def record_points_ingested(kb: str, n_new: int, n_new_types: int = 0) -> None:
         POINTS_INGESTED.labels(kb=kb).inc(n_new)
     if n_new_types > 0:
         TYPES_CREATED.labels(kb=kb).inc(n_new_types)
+
+
+def record_planner_suggests(sources: Iterable[Mapping[str, Any] | None]) -> int:
+    """Observe the local suggest timings planners reported in their points' sources; called
+    only for a post that stored new points, so that a retried batch is not counted twice.
+    Returns how many were observed."""
+    observed = 0
+    for source in sources:
+        values = (source or {}).get(REPORTED_SUGGEST_KEY)
+        if not isinstance(values, list):
+            continue
+        for value in values[:MAX_REPORTED_SUGGESTS]:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                continue
+            if 0.0 <= value <= MAX_REPORTED_SUGGEST_S:
+                PLANNER_SUGGEST_LATENCY.observe(float(value))
+                observed += 1
+    return observed
 
 
 def record_fit(seconds: float, n_points: int, ok: bool = True) -> None:
@@ -137,31 +174,105 @@ class _StoreCollector(Collector):
         return []
 
 
-_store_collector: _StoreCollector | None = None
-
-
 def set_store_reader(read: Callable[[], Iterable[tuple[str, int, int]]]) -> None:
     """Point the store gauges at the app's database (the latest app created wins)."""
-    global _store_collector
-    if _store_collector is not None:
-        REGISTRY.unregister(_store_collector)
-    _store_collector = _StoreCollector(read)
-    REGISTRY.register(_store_collector)
+    _register("store", _StoreCollector(read))
 
 
-def route_template(scope: Scope) -> str:
-    """The matched route's path template, or a fixed label for paths no route matched."""
-    route = scope.get("route")
-    path = getattr(route, "path", None)
-    return path if isinstance(path, str) else UNMATCHED_ROUTE
+class _EngineCollector(Collector):
+    """Scrape-time gauges of the surrogate engine (`read` gives it, or None when surrogates
+    are off): the fit backlog and how far the served models lag behind the stored points."""
+
+    def __init__(self, read: Callable[[], Any]) -> None:
+        self._read = read
+
+    def collect(self) -> Iterable[GaugeMetricFamily]:
+        backlog = GaugeMetricFamily(
+            "cpkb_surrogate_fit_backlog",
+            "CP types queued for a surrogate fit or being fitted, by knowledge base.",
+            labels=["kb"],
+        )
+        unfitted = GaugeMetricFamily(
+            "cpkb_surrogate_unfitted_points",
+            "Points of loaded types that their served model was not fitted on (they are weighed "
+            "in until the next fit lands), by knowledge base.",
+            labels=["kb"],
+        )
+        age = GaugeMetricFamily(
+            "cpkb_surrogate_stale_model_age_seconds",
+            "Age of the latest fit of the stalest type with unfitted points (0: none lags), by "
+            "knowledge base.",
+            labels=["kb"],
+        )
+        engine = self._read()
+        for kb, gauge in sorted((engine.gauges() if engine is not None else {}).items()):
+            backlog.add_metric([kb], gauge.backlog)
+            unfitted.add_metric([kb], gauge.unfitted_points)
+            age.add_metric([kb], gauge.stale_model_age_s)
+        yield backlog
+        yield unfitted
+        yield age
+
+    def describe(self) -> Iterable[GaugeMetricFamily]:
+        return []
+
+
+_collectors: dict[str, Collector] = {}
+
+
+def _register(name: str, collector: Collector) -> None:
+    """Register `collector` under `name`, replacing the one an earlier app registered."""
+    old = _collectors.pop(name, None)
+    if old is not None:
+        REGISTRY.unregister(old)
+    _collectors[name] = collector
+    REGISTRY.register(collector)
+
+
+def route_template(scope: Scope, routes: Sequence[BaseRoute] = ()) -> str:
+    """The matched route's path template; for an answer given before routing (a 413) or by a
+    plain Starlette route (`/docs`), the template of the first of `routes` the request matches;
+    else a fixed label for paths no route matches."""
+    path = getattr(scope.get("route"), "path", None)
+    if isinstance(path, str):
+        return path
+    return _match_template({**scope, "root_path": ""}, routes) or UNMATCHED_ROUTE
+
+
+def _match_template(scope: Scope, routes: Sequence[BaseRoute]) -> str | None:
+    """The template of the route `scope` fully matches, else of one whose path matches with
+    another method."""
+    full, partial = _matches(scope, routes)
+    return full or partial
+
+
+def _matches(scope: Scope, routes: Sequence[BaseRoute]) -> tuple[str | None, str | None]:
+    """(first full match, first partial match), into included routers: FastAPI keeps an
+    inclusion as one route holding the router, whose routes' paths carry its prefix."""
+    partial = None
+    for route in routes:
+        inner = getattr(route, "original_router", None)
+        if inner is not None:
+            full, inner_partial = _matches(scope, inner.routes)
+        else:
+            match, _ = route.matches(scope)
+            path = getattr(route, "path", None)
+            if not isinstance(path, str) or match is Match.NONE:
+                continue
+            full, inner_partial = (path, None) if match is Match.FULL else (None, path)
+        if full is not None:
+            return full, partial
+        partial = partial or inner_partial
+    return None, partial
 
 
 class MetricsMiddleware:
     """Pure ASGI middleware: counts and times every HTTP request by route template, and writes
     one structured access-log record per request."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, routes: Sequence[BaseRoute] = ()) -> None:
         self.app = app
+        self.routes = routes  # the app's own list: routes added later are matched too
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -181,7 +292,7 @@ class MetricsMiddleware:
         finally:
             elapsed = time.perf_counter() - start
             method = scope.get("method", "")
-            route = route_template(scope)
+            route = route_template(scope, self.routes)
             HTTP_REQUESTS.labels(method=method, route=route, status=str(status)).inc()
             HTTP_LATENCY.labels(method=method, route=route).observe(elapsed)
             if route.endswith("/suggest") and status < 400:
@@ -207,7 +318,7 @@ def install_observability(
 ) -> None:
     """Add `/metrics` and the timing middleware to `app`. The store gauges read `store_reader`,
     by default the service's own knowledge-base listing over `app.state.store`."""
-    app.add_middleware(MetricsMiddleware)
+    app.add_middleware(MetricsMiddleware, routes=app.router.routes)
     app.add_api_route(
         "/metrics",
         metrics_response,
@@ -219,6 +330,8 @@ def install_observability(
         store_reader = _kb_listing(app.state.store)
     if store_reader is not None:
         set_store_reader(store_reader)
+    # The engine is installed after this (INSTALLERS' order) and may be off: read it per scrape.
+    _register("engine", _EngineCollector(lambda: getattr(app.state, "surrogates", None)))
 
 
 def _kb_listing(store: Any) -> Callable[[], list[tuple[str, int, int]]]:

@@ -132,7 +132,14 @@ def _serve(args: argparse.Namespace) -> int:
             f"http://{settings.host}:{port} (API docs at /docs)",
             flush=True,
         )
-        config = uvicorn.Config(app, log_level=settings.log_level)
+        from server.observability import configure_json_logging
+
+        # One JSON line per record on stderr: uvicorn's own loggers propagate to the root
+        # (log_config=None) and the service's access log replaces uvicorn's plain one.
+        configure_json_logging(settings.log_level)
+        config = uvicorn.Config(
+            app, log_config=None, log_level=settings.log_level, access_log=False
+        )
         uvicorn.Server(config).run(sockets=[listener])
     return 0
 

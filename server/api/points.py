@@ -9,7 +9,7 @@ from fastapi.responses import StreamingResponse
 
 from client.models import PointsIn, PointsOut, PointsPage, PointsSinceIn, PointsSinceOut
 from server.api.deps import HooksDep, SettingsDep, StoreDep
-from server.observability import record_points_ingested
+from server.observability import record_planner_suggests, record_points_ingested
 from server.services import points
 
 router = APIRouter(prefix="/v1/kbs/{kb}", tags=["points"])
@@ -21,6 +21,7 @@ def post_points(kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep) -> Po
     outcome = points.add_points(store, kb, body.points)
     if outcome.n_new:
         record_points_ingested(kb, outcome.n_new, outcome.n_new_types)
+        record_planner_suggests(p.source.model_extra if p.source else None for p in body.points)
         hooks.notify_points_added(kb, outcome.touched)
     return PointsOut(results=outcome.results)
 

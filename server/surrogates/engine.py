@@ -49,6 +49,13 @@ class EngineConfig:
 
 
 @dataclass
+class KbGauges:
+    backlog: int = 0  # types queued or fitting
+    unfitted_points: int = 0  # loaded points the served models were not fitted on
+    stale_model_age_s: float = 0.0  # age of the oldest fit among types with such points
+
+
+@dataclass
 class _Entry:
     space: dict[str, Domain]
     encoder: SpaceEncoder
@@ -247,6 +254,26 @@ class SurrogateEngine:
             fitted_at=entry.fitted_at,
             error=entry.error,
         )
+
+    def gauges(self) -> dict[str, KbGauges]:
+        """Per knowledge base: types waiting for a fit, points the served models were not
+        fitted on, and how old the latest fit is of the stalest type that lags (for /metrics)."""
+        now = datetime.now(UTC)
+        out: dict[str, KbGauges] = {}
+        with self._cond:
+            waiting = [*self._queue, *([self._busy] if self._busy is not None else [])]
+            for kb, _ in waiting:
+                out.setdefault(kb, KbGauges()).backlog += 1
+            for (kb, _), entry in self._entries.items():
+                lag = entry.n_points - entry.n_fitted
+                if lag <= 0:
+                    continue
+                gauge = out.setdefault(kb, KbGauges())
+                gauge.unfitted_points += lag
+                if entry.fitted_at is not None:
+                    age = (now - entry.fitted_at).total_seconds()
+                    gauge.stale_model_age_s = max(gauge.stale_model_age_s, age)
+        return out
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until no type is queued or fitting (tests, benchmarks); False on timeout."""

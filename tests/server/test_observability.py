@@ -6,6 +6,8 @@ import io
 import json
 import logging
 import sys
+import threading
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,6 +20,7 @@ from server.observability import (
     record_fit,
 )
 from tests.service_support import make_graph, make_point
+from tests.wait_support import PATIENCE_S, wait_until
 
 
 def _value(name: str, **labels: str) -> float:
@@ -159,3 +162,120 @@ def test_configured_logging_writes_json_lines_with_extras_and_exceptions(
     assert [line["message"] for line in lines] == ["fitted", "fit failed"]
     assert lines[0]["type_id"] == "abc" and lines[0]["seconds"] == 1.25
     assert "ValueError: boom" in lines[1]["exception"] and lines[1]["level"] == "error"
+
+
+def test_no_created_series_double_the_count(app_client: Any) -> None:
+    app_client.get("/healthz")
+    samples = [s.name for samples in _scrape(app_client).values() for s in samples]
+    assert "cpkb_http_requests_total" in samples
+    assert not [name for name in samples if name.endswith("_created")]
+
+
+def test_answers_before_routing_and_plain_routes_are_labelled_by_route(db_url: str) -> None:
+    from fastapi.testclient import TestClient
+
+    from server.app import create_app
+    from server.settings import Settings
+
+    app = create_app(Settings(database_url=db_url, max_body_bytes=2048))
+    too_large = {"method": "POST", "route": "/v1/kbs/{kb}/points", "status": "413"}
+    docs = {"method": "GET", "route": "/docs", "status": "200"}
+    wrong_method = {"method": "PUT", "route": "/v1/kbs", "status": "405"}
+    unmatched = {"method": "POST", "route": "<unmatched>", "status": "413"}
+    watched = (too_large, docs, wrong_method)
+    before = [_value("cpkb_http_requests_total", **labels) for labels in watched]
+    before_unmatched = _value("cpkb_http_requests_total", **unmatched)
+    with TestClient(app) as client:
+        body = {"points": [make_point(i) for i in range(40)]}
+        assert client.post("/v1/kbs/default/points", json=body).status_code == 413
+        assert client.get("/docs").status_code == 200
+        assert client.put("/v1/kbs", json={}).status_code == 405
+    after = [_value("cpkb_http_requests_total", **labels) for labels in watched]
+    assert [a - b for a, b in zip(after, before, strict=True)] == [1, 1, 1]
+    assert _value("cpkb_http_requests_total", **unmatched) == before_unmatched
+
+
+def test_planner_reported_suggest_timings_are_counted_once(app_client: Any) -> None:
+    name = "cpkb_planner_suggest_duration_seconds"
+    before_n, before_sum = _value(f"{name}_count"), _value(f"{name}_sum")
+    points = [make_point(i, key=f"timed{i}") for i in range(3)]
+    points[0]["source"] = {"run": "r1", "local_suggest_s": [0.02, 0.5]}
+    # Not timings: a negative, a string, a boolean and one of over an hour are left out.
+    points[1]["source"] = {"run": "r1", "local_suggest_s": [-1, "fast", True, 7200, 0.25]}
+    points[2]["source"] = {"run": "r1", "local_suggest_s": 0.3}
+    for _ in range(2):  # the retry stores nothing new and counts nothing again
+        response = app_client.post("/v1/kbs/default/points", json={"points": points})
+        assert response.status_code == 201
+    assert _value(f"{name}_count") - before_n == 3
+    assert _value(f"{name}_sum") - before_sum == pytest.approx(0.77)
+    assert _value(f"{name}_bucket", le="0.025") - _value(f"{name}_bucket", le="0.01") >= 1
+
+
+def _gauges(client: Any, kb: str) -> dict[str, float]:
+    families = _scrape(client)
+    return {
+        name: next((s.value for s in families[name] if s.labels["kb"] == kb), 0.0)
+        for name in (
+            "cpkb_surrogate_fit_backlog",
+            "cpkb_surrogate_unfitted_points",
+            "cpkb_surrogate_stale_model_age_seconds",
+        )
+    }
+
+
+def test_fit_backlog_and_model_staleness_gauges_follow_the_engine(
+    app_client: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    engine = app_client.app.state.surrogates
+    app_client.post("/v1/kbs", json={"name": "lagging"})
+    points = [make_point(i, feasible=i % 2 == 0) for i in range(12)]
+    assert app_client.post("/v1/kbs/lagging/points", json={"points": points}).status_code == 201
+    assert engine.wait_idle(timeout=PATIENCE_S)
+    assert set(_gauges(app_client, "lagging").values()) == {0.0}
+    # The next fit is held, so the points posted meanwhile lag behind the served model.
+    release = threading.Event()
+    fit = engine._fit
+
+    def held_fit(*args: Any) -> Any:
+        release.wait(timeout=PATIENCE_S)
+        return fit(*args)
+
+    monkeypatch.setattr(engine, "_fit", held_fit)
+    more = [make_point(i, feasible=i % 2 == 1) for i in range(12, 20)]
+    assert app_client.post("/v1/kbs/lagging/points", json={"points": more}).status_code == 201
+    lagging = wait_until(
+        lambda: (g := _gauges(app_client, "lagging"))["cpkb_surrogate_unfitted_points"] and g,
+        what="the unfitted points to show",
+    )
+    assert lagging["cpkb_surrogate_unfitted_points"] == 8
+    assert lagging["cpkb_surrogate_fit_backlog"] == 1
+    assert lagging["cpkb_surrogate_stale_model_age_seconds"] >= 0
+    release.set()
+    assert engine.wait_idle(timeout=PATIENCE_S)
+    assert set(_gauges(app_client, "lagging").values()) == {0.0}
+
+
+@pytest.mark.slow
+def test_a_served_service_writes_json_access_logs_and_get_or_create_adds_no_409(
+    sqlite_url: str, tmp_path: Path
+) -> None:
+    from client import CpkbClient
+    from tests.service_support import run_live_server
+
+    log = tmp_path / "server.log"
+    with run_live_server(sqlite_url, log) as server, CpkbClient(server.url) as client:
+        for _ in range(3):  # as every `cpkb plan` on a shared knowledge base does
+            assert client.create_kb("shared", exist_ok=True).name == "shared"
+        assert client.create_kb("default", exist_ok=True).name == "default"
+        metrics = client.request("GET", "/metrics").text
+        families = {f.name: f.samples for f in text_string_to_metric_families(metrics)}
+    statuses = {
+        s.labels["status"]
+        for s in families["cpkb_http_requests"]
+        if s.labels["route"] == "/v1/kbs" and s.labels["method"] == "POST"
+    }
+    assert statuses == {"201"}
+    records = [json.loads(line) for line in log.read_text().splitlines() if line.startswith("{")]
+    access = [r for r in records if r["logger"] == "cpkb.access"]
+    assert any(r["route"] == "/v1/kbs/{kb}" and r["status"] == 200 for r in access)
+    assert any(r["logger"].startswith("uvicorn") for r in records)  # uvicorn's own, as JSON
