@@ -53,6 +53,32 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+# Examples for the OpenAPI schema (/docs): an inverse-kinematics failure of one grasp and pose.
+_DIR = {"kind": "categorical", "choices": ["front", "right", "top", "back", "left"]}
+_POSE = {"kind": "continuous", "low": [0.0, 0.0, -3.14], "high": [1.0, 1.0, 3.14]}
+_GRAPH_EXAMPLE = {
+    "nodes": [
+        {"id": "f", "role": "failure", "label": "Inv-kin"},
+        {"id": "d", "role": "decision", "label": "#dir", "domain": _DIR},
+        {"id": "p", "role": "decision", "label": "#pose", "domain": _POSE},
+        {"id": "c0", "role": "context", "label": "shelf"},
+    ],
+    "edges": [
+        {"source": "d", "target": "f", "label": "grasp"},
+        {"source": "p", "target": "f", "label": "pose"},
+        {"source": "c0", "target": "f", "label": "collides"},
+    ],
+}
+_POINT_EXAMPLE = {
+    "graph": _GRAPH_EXAMPLE,
+    "x": {"#dir": "top", "#pose": [0.42, 0.7, 1.57]},
+    "feasible": False,
+    "source": {"task": "desk", "run": "desk-cp-bo-7", "rollout": 12, "worker": "host:4242"},
+    "key": "desk-cp-bo-7/12/0",
+}
+_TYPE_ID_EXAMPLE = "3f9a0c1d2b4e5f60"
+
+
 class CategoricalDomain(_Strict):
     """A finite set of named choices; `embedding` optionally maps each choice to a vector
     (a grasp direction to its unit approach vector) so that surrogates see geometry, not codes."""
@@ -123,23 +149,34 @@ Role = Literal["failure", "decision", "context", "connection"]
 
 
 class Node(_Strict):
-    id: Label
-    role: Role
-    label: Label
-    domain: Domain | None = None
+    id: Label = Field(description="Unique within the graph; any name (it is not hashed).")
+    role: Role = Field(description="failure (one per graph), decision, context or connection.")
+    label: Label = Field(
+        description="What the vertex is in the workspace: a failure kind (`Inv-kin`), a "
+        "decision variable (`#pose`, unique among decisions) or a body (`shelf`)."
+    )
+    domain: Domain | None = Field(
+        default=None, description="A decision's domain (required for decisions, else none)."
+    )
 
 
 class Edge(_Strict):
-    source: Label
-    target: Label
-    label: Annotated[Text, Field(max_length=MAX_LABEL)] = ""
+    source: Label = Field(description="The `id` of the vertex the edge leaves.")
+    target: Label = Field(description="The `id` of the vertex the edge enters.")
+    label: Annotated[Text, Field(max_length=MAX_LABEL)] = Field(
+        default="", description="What the edge means (`grasp`, `collides`); hashed."
+    )
 
 
 class Graph(_Strict):
     """A causal graph of one failure: failure, decision, context and connection vertexes."""
 
-    nodes: list[Node] = Field(min_length=1, max_length=MAX_NODES)
-    edges: list[Edge] = Field(default_factory=list, max_length=MAX_EDGES)
+    model_config = ConfigDict(json_schema_extra={"examples": [_GRAPH_EXAMPLE]})
+
+    nodes: list[Node] = Field(min_length=1, max_length=MAX_NODES, description="The vertexes.")
+    edges: list[Edge] = Field(
+        default_factory=list, max_length=MAX_EDGES, description="Directed, labelled edges."
+    )
 
 
 class Source(BaseModel):
@@ -152,11 +189,17 @@ class Source(BaseModel):
         json_schema_extra={"x-max-depth": MAX_SOURCE_DEPTH},
     )
 
-    task: Text | None = Field(default=None, max_length=MAX_LABEL)
-    run: Text | None = Field(default=None, max_length=MAX_LABEL)
-    rollout: int | None = None
-    worker: Text | None = Field(default=None, max_length=MAX_LABEL)
-    time: datetime | None = None
+    task: Text | None = Field(default=None, max_length=MAX_LABEL, description="The task run.")
+    run: Text | None = Field(
+        default=None,
+        max_length=MAX_LABEL,
+        description="The run the point came from (`exclude_run` of points/since matches it).",
+    )
+    rollout: int | None = Field(default=None, description="The rollout within the run.")
+    worker: Text | None = Field(
+        default=None, max_length=MAX_LABEL, description="Who posted it (host:pid)."
+    )
+    time: datetime | None = Field(default=None, description="When the point was observed.")
 
     @model_validator(mode="after")
     def _check_extra(self) -> Source:
@@ -192,15 +235,33 @@ def _storable_at(text: str, where: str) -> None:
 
 
 class PointIn(_Strict):
-    graph: Graph
-    x: dict[Label, Value]
-    feasible: bool
-    source: Source | None = None
-    key: Annotated[Text, Field(min_length=1, max_length=200)] | None = None
+    """One observation of a constraint: the failure's causal graph (its type) and the decision
+    values tried, feasible or not."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [_POINT_EXAMPLE]})
+
+    graph: Graph = Field(description="The causal graph; its hash is the point's CP type.")
+    x: dict[Label, Value] = Field(
+        description="A value for every decision label of the graph: a choice name "
+        "(categorical) or a list of floats within the domain's box (continuous)."
+    )
+    feasible: bool = Field(description="Whether the constraint held at `x`.")
+    source: Source | None = Field(default=None, description="Provenance, stored with the point.")
+    key: Annotated[Text, Field(min_length=1, max_length=200)] | None = Field(
+        default=None,
+        description="Idempotency key: the same key and point again stores nothing (a replay); "
+        "the same key with another point is a 409.",
+    )
 
 
 class PointsIn(_Strict):
-    points: list[PointIn] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+    model_config = ConfigDict(json_schema_extra={"examples": [{"points": [_POINT_EXAMPLE]}]})
+
+    points: list[PointIn] = Field(
+        min_length=1,
+        max_length=MAX_POINTS_PER_POST,
+        description=f"1 to {MAX_POINTS_PER_POST} points, stored in one transaction.",
+    )
 
 
 class PointResult(BaseModel):
@@ -214,7 +275,13 @@ class PointsOut(BaseModel):
 
 
 class MatchIn(_Strict):
-    graphs: list[Graph] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+    model_config = ConfigDict(json_schema_extra={"examples": [{"graphs": [_GRAPH_EXAMPLE]}]})
+
+    graphs: list[Graph] = Field(
+        min_length=1,
+        max_length=MAX_POINTS_PER_POST,
+        description="Graphs to hash into type IDs; nothing is stored.",
+    )
 
 
 class MatchResult(BaseModel):
@@ -227,7 +294,11 @@ class KnowledgeBaseIn(_Strict):
     """A name that is one path segment of the API's URLs: `.` and `..` are not (clients and
     proxies resolve them away)."""
 
-    name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
+    model_config = ConfigDict(json_schema_extra={"examples": [{"name": "lab"}]})
+
+    name: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")] = Field(
+        description="Letters, digits, `_`, `.` and `-`; not `.` or `..`."
+    )
 
     @model_validator(mode="after")
     def _check_name(self) -> KnowledgeBaseIn:
@@ -298,10 +369,33 @@ class PointsSinceIn(_Strict):
     ID the knowledge base does not hold is watched, not refused: its points come once another
     writer creates it. `exclude_run` leaves out the caller's own points (`source.run`)."""
 
-    type_ids: list[Label] = Field(max_length=MAX_WATCHED_TYPES)
-    after_point_id: int | None = Field(default=None, ge=0, le=MAX_SEED)
-    exclude_run: Text | None = Field(default=None, max_length=MAX_LABEL)
-    limit: int = Field(default=MAX_POINTS_PER_POST, ge=1, le=MAX_POINTS_PER_POST)
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "type_ids": [_TYPE_ID_EXAMPLE],
+                    "after_point_id": 1200,
+                    "exclude_run": "desk-cp-bo-7",
+                }
+            ]
+        }
+    )
+
+    type_ids: list[Label] = Field(
+        max_length=MAX_WATCHED_TYPES, description="The watched types (stored or not yet)."
+    )
+    after_point_id: int | None = Field(
+        default=None, ge=0, le=MAX_SEED, description="The cursor of the previous answer."
+    )
+    exclude_run: Text | None = Field(
+        default=None, max_length=MAX_LABEL, description="Leave out points of this `source.run`."
+    )
+    limit: int = Field(
+        default=MAX_POINTS_PER_POST,
+        ge=1,
+        le=MAX_POINTS_PER_POST,
+        description="At most this many points in the answer.",
+    )
 
 
 class LivePoint(BaseModel):
@@ -322,7 +416,15 @@ class PointsSinceOut(BaseModel):
 
 
 class PredictIn(_Strict):
-    x: list[dict[Label, Value]] = Field(min_length=1, max_length=MAX_POINTS_PER_POST)
+    model_config = ConfigDict(
+        json_schema_extra={"examples": [{"x": [{"#dir": "top", "#pose": [0.42, 0.7, 1.57]}]}]}
+    )
+
+    x: list[dict[Label, Value]] = Field(
+        min_length=1,
+        max_length=MAX_POINTS_PER_POST,
+        description="Points, each a value for every decision label of the type.",
+    )
 
 
 class PredictOut(BaseModel):
@@ -330,8 +432,12 @@ class PredictOut(BaseModel):
 
 
 class Constraint(_Strict):
-    type_id: Label
-    bind: dict[Label, Label] = Field(min_length=1)
+    type_id: Label = Field(description="A CP type of the knowledge base.")
+    bind: dict[Label, Label] = Field(
+        min_length=1,
+        description="The type's decision labels mapped onto this request's variables (names "
+        "in `space` or `fixed`): a type's `#dir` is `#dir2` at a task's second grasp.",
+    )
 
 
 class SuggestIn(_Strict):
@@ -343,13 +449,47 @@ class SuggestIn(_Strict):
     before it on the non-lookahead variables: what `n` successive suggestions at one node would
     be if the model did not change in between, for the price of one."""
 
-    space: dict[Label, Domain] = Field(min_length=1, max_length=MAX_DIM)
-    fixed: dict[Label, Value] = Field(default_factory=dict)
-    constraints: list[Constraint] = Field(default_factory=list, max_length=64)
-    exclude: list[dict[Label, Value]] = Field(default_factory=list, max_length=10_000)
-    lookahead: list[Label] = Field(default_factory=list, max_length=MAX_DIM)
-    seed: int | None = Field(default=None, ge=0, le=MAX_SEED)
-    n: int = Field(1, ge=1, le=MAX_BATCH)
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "space": {"g": _DIR, "p": _POSE},
+                    "constraints": [
+                        {"type_id": _TYPE_ID_EXAMPLE, "bind": {"#dir": "g", "#pose": "p"}}
+                    ],
+                    "exclude": [{"g": "front"}],
+                    "seed": 0,
+                }
+            ]
+        }
+    )
+
+    space: dict[Label, Domain] = Field(
+        min_length=1, max_length=MAX_DIM, description="The variables to choose, by name."
+    )
+    fixed: dict[Label, Value] = Field(
+        default_factory=dict, description="Variables already decided, by name."
+    )
+    constraints: list[Constraint] = Field(
+        default_factory=list,
+        max_length=64,
+        description="The CP types whose feasibility the answer maximises (the minimum of them).",
+    )
+    exclude: list[dict[Label, Value]] = Field(
+        default_factory=list,
+        max_length=10_000,
+        description="Points not to answer (a node's siblings); a partial one excludes all that "
+        "agree with it.",
+    )
+    lookahead: list[Label] = Field(
+        default_factory=list,
+        max_length=MAX_DIM,
+        description="Variables of `space` that are later decisions, maximised jointly.",
+    )
+    seed: int | None = Field(
+        default=None, ge=0, le=MAX_SEED, description="Makes the answer repeatable."
+    )
+    n: int = Field(1, ge=1, le=MAX_BATCH, description="Points in the answer's `batch`.")
 
 
 class SuggestedPoint(BaseModel):
@@ -376,8 +516,18 @@ class ModelsIn(_Strict):
     """`known` maps a type to the version of its model the caller holds: the answer leaves
     those types out unless their model has changed since."""
 
-    type_ids: list[Label] = Field(min_length=1, max_length=64)
-    known: dict[Label, Text] = Field(default_factory=dict)
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [{"type_ids": [_TYPE_ID_EXAMPLE], "known": {_TYPE_ID_EXAMPLE: "40"}}]
+        }
+    )
+
+    type_ids: list[Label] = Field(
+        min_length=1, max_length=64, description="The types whose models to send."
+    )
+    known: dict[Label, Text] = Field(
+        default_factory=dict, description="Type ID to the model version the caller holds."
+    )
 
 
 class ModelSnapshot(BaseModel):

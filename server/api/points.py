@@ -9,13 +9,19 @@ from fastapi.responses import StreamingResponse
 
 from client.models import PointsIn, PointsOut, PointsPage, PointsSinceIn, PointsSinceOut
 from server.api.deps import HooksDep, SettingsDep, StoreDep
+from server.api.responses import BODY, IN_KB, INVALID, errors, json_errors
 from server.observability import record_planner_suggests, record_points_ingested
 from server.services import points
 
-router = APIRouter(prefix="/v1/kbs/{kb}", tags=["points"])
+
+class CsvResponse(StreamingResponse):
+    media_type = "text/csv"
 
 
-@router.post("/points", status_code=status.HTTP_201_CREATED)
+router = APIRouter(prefix="/v1/kbs/{kb}", tags=["points"], responses=IN_KB)
+
+
+@router.post("/points", status_code=status.HTTP_201_CREATED, responses=errors(409) | BODY)
 def post_points(kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep) -> PointsOut:
     """Store up to 1000 points in one transaction; a repeated `key` stores nothing twice."""
     outcome = points.add_points(store, kb, body.points)
@@ -26,13 +32,13 @@ def post_points(kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep) -> Po
     return PointsOut(results=outcome.results)
 
 
-@router.post("/points/since")
+@router.post("/points/since", responses=BODY)
 def points_since(kb: str, body: PointsSinceIn, store: StoreDep) -> PointsSinceOut:
     """Other writers' points of the watched types stored after a cursor (live sharing)."""
     return points.points_since(store, kb, body)
 
 
-@router.get("/types/{type_id}/points")
+@router.get("/types/{type_id}/points", responses=INVALID)
 def list_points(
     kb: str,
     type_id: str,
@@ -46,12 +52,22 @@ def list_points(
     return points.list_points(store, kb, type_id, limit=size, cursor=cursor)
 
 
-@router.get("/types/{type_id}/points.csv", response_class=StreamingResponse)
-def export_points_csv(kb: str, type_id: str, store: StoreDep) -> StreamingResponse:
+@router.get(
+    "/types/{type_id}/points.csv",
+    response_class=CsvResponse,
+    responses=json_errors(401, 404, 422, 503)
+    | {
+        200: {
+            "description": "The type's points, a row each: a column per decision value, "
+            "provenance columns after.",
+            "content": {"text/csv": {"schema": {"type": "string"}}},
+        }
+    },
+)
+def export_points_csv(kb: str, type_id: str, store: StoreDep) -> CsvResponse:
     """The type's table as CSV: one column per decision value, provenance columns after."""
     lines = points.iter_csv(store, kb, type_id)
-    return StreamingResponse(
+    return CsvResponse(
         lines,
-        media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="{kb}-{type_id}.csv"'},
     )
