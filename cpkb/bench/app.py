@@ -21,6 +21,7 @@ from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
 from cpkb.bench.scenarios import TRANSFER_METHODS, expand, predecessors, task_kinds
 from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
+from cpkb.bench.variants import Variant
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,7 @@ class BenchSettings:
     quiet: bool = False
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     concurrent: int = 1  # the runs of a cell N at a time on one knowledge base
+    variants: Mapping[str, Variant] = field(default_factory=dict)  # named method + knobs
 
 
 def plan_run(
@@ -74,12 +76,13 @@ def _is_task_file(task: str) -> bool:
 
 def check_request(settings: BenchSettings) -> None:
     """Name the unknown task or method before any worker starts."""
-    methods, tasks = known_methods(), known_tasks()
+    methods, tasks = known_methods() | set(settings.variants), known_tasks()
     unknown_m = [m for m in settings.methods if m not in methods]
     if unknown_m:
         raise ValueError(f"unknown method {unknown_m[0]!r} (known: {', '.join(sorted(methods))})")
     needed = set(settings.tasks)
-    if any(m in TRANSFER_METHODS for m in settings.methods):
+    runs = [settings.variants[m].method if m in settings.variants else m for m in settings.methods]
+    if any(m in TRANSFER_METHODS for m in runs):
         needed |= {p for t in settings.tasks for p in predecessors(t)}
     missing_files = [t for t in needed if _is_task_file(t) and not Path(t).is_file()]
     if missing_files:
@@ -143,7 +146,7 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
 
 
 def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
-    scenarios = expand(settings.tasks, settings.methods, settings.seeds)
+    scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
     service = (
         contextlib.nullcontext(None)

@@ -130,8 +130,9 @@ def _as_dict(result: Any) -> dict[str, Any]:
 def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> dict[str, Any]:
     kb_url = job.kb_service.url if job.kb_service is not None else None
     kb = job.kb_name if job.kb_service is not None else None
-    if job.config:
-        extra = {"config": dict(job.config), **extra}
+    config = {**job.config, **dict(job.scenario.overrides)}
+    if config:
+        extra = {"config": config, **extra}
     result = job.run_fn(
         task,
         method,
@@ -184,6 +185,8 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             task=s.task,
             method=s.method,
             sampler=s.sampler,
+            base_method=s.runs,
+            overrides=dict(s.overrides),
             seed=s.seed,
             max_rollouts=job.max_rollouts,
             predecessors=predecessors,

@@ -10,6 +10,10 @@ from __future__ import annotations
 import functools
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from cpkb.bench.variants import Variant
 
 TRANSFER_METHOD = "cp-bo-transfer"
 """Not a sampler: `cp-bo` on a knowledge base first filled by the task's predecessors."""
@@ -33,24 +37,33 @@ PAPER_REDUCTION_PERCENT: Mapping[str, float] = {"desk": 71.69, "regrasp": 60.37,
 
 @dataclass(frozen=True, order=True)
 class Scenario:
-    """One run of the bench: its own fresh knowledge base, one result line."""
+    """One run of the bench: its own fresh knowledge base, one result line. A variant's
+    scenario (`cpkb.bench.variants`) names the variant as its method, runs `base`, and adds
+    its `overrides` to the bench's planner knobs."""
 
     task: str
     method: str
     seed: int
+    base: str = ""
+    overrides: tuple[tuple[str, Any], ...] = ()
 
     @property
     def key(self) -> tuple[str, str, int]:
         return (self.task, self.method, self.seed)
 
     @property
+    def runs(self) -> str:
+        """The method this scenario runs: itself, or a variant's."""
+        return self.base or self.method
+
+    @property
     def predecessors(self) -> tuple[str, ...]:
-        return predecessors(self.task) if self.method in TRANSFER_METHODS else ()
+        return predecessors(self.task) if self.runs in TRANSFER_METHODS else ()
 
     @property
     def sampler(self) -> str:
         """The planner method that searches the predecessors and the target task."""
-        return TRANSFER_METHODS.get(self.method, self.method)
+        return TRANSFER_METHODS.get(self.runs, self.runs)
 
 
 @functools.lru_cache(maxsize=256)
@@ -88,13 +101,28 @@ def task_kinds(tasks: Iterable[str]) -> dict[str, str]:
     return kinds
 
 
-def expand(tasks: Sequence[str], methods: Sequence[str], seeds: Iterable[int]) -> list[Scenario]:
-    """Every (task, method, seed), seed-major; a transfer method needs a task with predecessors."""
-    transfer = [m for m in methods if m in TRANSFER_METHODS]
+def expand(
+    tasks: Sequence[str],
+    methods: Sequence[str],
+    seeds: Iterable[int],
+    variants: Mapping[str, Variant] | None = None,
+) -> list[Scenario]:
+    """Every (task, method, seed), seed-major; a method may be one of `variants`. A transfer
+    method (or a variant of one) needs a task with predecessors."""
+    variants = variants or {}
+    runs = {m: variants[m].method if m in variants else m for m in methods}
+    transfer = [m for m in methods if runs[m] in TRANSFER_METHODS]
     for task in tasks:
         if transfer and not predecessors(task):
             raise ValueError(
                 f"{transfer[0]} has no predecessor tasks for {task!r}: declare them in its "
                 "task file (`predecessors: [deskP, ../other/task.yaml]`)"
             )
-    return [Scenario(t, m, s) for s in seeds for t in tasks for m in methods]
+    return [
+        Scenario(t, m, s, variants[m].method, variants[m].overrides)
+        if m in variants
+        else Scenario(t, m, s)
+        for s in seeds
+        for t in tasks
+        for m in methods
+    ]

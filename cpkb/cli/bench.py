@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+from typing import Any
 
 from cpkb.cli import CliError
 from cpkb.cli.argtypes import non_negative_int, positive_int
@@ -108,6 +109,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--summary-only", action="store_true", help="only rebuild the table and plots from OUT"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--variants",
+        metavar="FILE",
+        help="named variants of the methods, each a method with planner knobs "
+        "(`variants: {NAME: {method: cp-bo, set: {cp_bo.lookahead: false}}}`, YAML or JSON), "
+        "usable in --methods; benchmarks/ablation.yaml turns off each extension of cp-bo in turn",
+    )
     add_config_arguments(parser)
     parser.set_defaults(handler=handle)
 
@@ -129,6 +137,20 @@ def suite_tasks(tasks: list[str]) -> list[str]:
         except TaskError as exc:
             raise CliError(str(exc)) from None
     return expanded
+
+
+def bench_variants(path: str | None) -> dict[str, Any]:
+    """The variants file's variants, checked; a mistake is a CLI error naming it."""
+    if path is None:
+        return {}
+    from cpkb.bench.app import known_methods
+    from cpkb.bench.variants import load_variants
+    from planner.config import ConfigError
+
+    try:
+        return load_variants(path, known_methods())
+    except ConfigError as exc:
+        raise CliError(str(exc)) from None
 
 
 def handle(args: argparse.Namespace) -> int:
@@ -154,6 +176,7 @@ def handle(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         config=config_overrides(args),
         concurrent=args.concurrent,
+        variants=bench_variants(args.variants),
     )
     try:
         if args.kb_url is not None and not args.summary_only:
