@@ -67,6 +67,10 @@ class SearchConfig:
     many rollouts, updated by the failed rollouts through it: `w p / (w + failures)`. The
     knowledge base learns a failure only where it happened (until a refit spreads it), so counted
     failures make the search leave a child once another child's evidence is better."""
+    outlook_continuous_failures: bool = False
+    """Count the failures through a child of a continuous decision too (a box placed where the
+    next ones keep failing), not only through a categorical choice; off: such a child's outlook
+    is the model's view below it, which an unfitted type leaves near its prior."""
 
     def __post_init__(self) -> None:
         _at_least(

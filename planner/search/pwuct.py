@@ -208,7 +208,9 @@ class PWUCT:
         times above every open child's outlook (see `SearchConfig.outlook_widening`)."""
         if not self.config.outlook_widening:
             return None
-        best = comparable_outlook(node, self.config.outlook_prior_weight)
+        best = comparable_outlook(
+            node, self.config.outlook_prior_weight, self.config.outlook_continuous_failures
+        )
         if best is None:
             return None
         started = time.perf_counter()

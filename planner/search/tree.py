@@ -147,34 +147,42 @@ def widens(node: DecisionNode, k: float) -> bool:
     return node.visits > k * n_children**2
 
 
-def child_outlook(child: ChildNode, prior_weight: float) -> float | None:
+def child_outlook(
+    child: ChildNode, prior_weight: float, continuous_failures: bool = False
+) -> float | None:
     """The knowledge base's view below `child` after the failures through it (see
-    `SearchConfig.outlook_prior_weight`); None if it has not rated the node below."""
+    `SearchConfig.outlook_prior_weight`); None if it has not rated the node below. The child
+    of a continuous decision keeps the model's view unless `continuous_failures`
+    (`SearchConfig.outlook_continuous_failures`)."""
     p = child.next.last_p_feasible if child.next is not None else None
-    if p is None or child.parent.n_choices is None:
+    if p is None or (child.parent.n_choices is None and not continuous_failures):
         return p
     failures = 0 if child.success else child.visits
     return prior_weight * p / (prior_weight + failures)
 
 
-def outlook(node: DecisionNode, prior_weight: float) -> float | None:
+def outlook(
+    node: DecisionNode, prior_weight: float, continuous_failures: bool = False
+) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
     best: float | None = None
     for child in node.children:
         if child.closed:
             continue
-        p = child_outlook(child, prior_weight)
+        p = child_outlook(child, prior_weight, continuous_failures)
         if p is None:
             return None
         best = p if best is None else max(best, p)
     return best
 
 
-def comparable_outlook(node: DecisionNode, prior_weight: float) -> float | None:
+def comparable_outlook(
+    node: DecisionNode, prior_weight: float, continuous_failures: bool = False
+) -> float | None:
     """The outlook an untried value of `node` is compared with: None unless values are left
     and every open child is rated."""
-    return None if node.exhausted else outlook(node, prior_weight)
+    return None if node.exhausted else outlook(node, prior_weight, continuous_failures)
 
 
 def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
@@ -189,12 +197,13 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     log_n = math.log(max(node.visits, 1))
     weight, ratio = config.outlook_prior_weight, config.outlook_ratio
     guided = config.outlook_selection and node.visits % config.outlook_free_every != 0
-    best_outlook = outlook(node, weight) if guided else None
+    continuous = config.outlook_continuous_failures
+    best_outlook = outlook(node, weight, continuous) if guided else None
     for child in node.children:
         if child.closed:
             continue
         if best_outlook is not None:
-            rated = child_outlook(child, weight)
+            rated = child_outlook(child, weight, continuous)
             assert rated is not None
             if rated * ratio < best_outlook:
                 continue

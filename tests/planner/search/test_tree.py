@@ -284,6 +284,21 @@ def test_failures_through_a_choice_lower_its_outlook_but_not_a_placement_s():
     tried = add_child(placements, [0.5], visits=12, r=0.075)
     note_proposal(tried.next, 0.5, CONFIG)
     assert child_outlook(tried, W) == 0.5
+    assert child_outlook(tried, W, continuous_failures=True) == pytest.approx(W * 0.5 / (W + 12))
+
+
+def test_counting_a_placement_s_failures_lets_selection_leave_it():
+    """With `outlook_continuous_failures`, a box placed where the next ones keep failing loses
+    the selection to a sibling that has failed less, although the model rates both alike."""
+    placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
+    blocked = add_child(placements, [0.5], visits=12, r=0.075)
+    other = add_child(placements, [0.1], visits=2, r=0.05)
+    note_proposal(blocked.next, 0.45, CONFIG)
+    note_proposal(other.next, 0.45, CONFIG)
+    placements.visits = 15  # not a free visit (outlook_free_every)
+    counting = replace(CONFIG, outlook_continuous_failures=True, ucb_c=0.0)
+    assert ucb_select(placements, replace(counting, outlook_continuous_failures=False)) is blocked
+    assert ucb_select(placements, counting) is other
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
