@@ -42,6 +42,7 @@ class BenchSettings:
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     concurrent: int = 1  # the runs of a cell N at a time on one knowledge base
     variants: Mapping[str, Variant] = field(default_factory=dict)  # named method + knobs
+    ray_address: str | None = None  # run on this Ray cluster rather than a local pool
 
 
 def plan_run(
@@ -76,6 +77,12 @@ def _is_task_file(task: str) -> bool:
 
 def check_request(settings: BenchSettings) -> None:
     """Name the unknown task or method before any worker starts."""
+    if settings.ray_address is not None:
+        from cpkb.bench.ray_pool import require_ray
+
+        require_ray()
+        if settings.concurrent > 1:
+            raise ValueError("--concurrent runs wait for each other on one machine: not with --ray")
     methods, tasks = known_methods() | set(settings.variants), known_tasks()
     unknown_m = [m for m in settings.methods if m not in methods]
     if unknown_m:
@@ -153,6 +160,13 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
         if everything_done  # no service to start just to skip every run
         else knowledge_service(settings.kb_url, settings.token)
     )
+    pool = None
+    if settings.ray_address is not None:
+        from cpkb.bench.ray_pool import RayPool, WorkerKbs
+
+        pool = RayPool(settings.ray_address)
+        if settings.kb_url is None and not everything_done:
+            service = contextlib.nullcontext(WorkerKbs(settings.token))
     with service as kbs:
         return run_bench(
             scenarios,
@@ -167,6 +181,7 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
             progress=None if settings.quiet else RichProgress(console),
             config=settings.config,
             concurrent=settings.concurrent,
+            pool=pool,
         )
 
 

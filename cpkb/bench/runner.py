@@ -249,6 +249,46 @@ def _init_worker(bench_pid: int) -> None:
     exit_with_parent(bench_pid)
 
 
+class RunPool(Protocol):
+    """Where the jobs run: the local process pool, or a cluster's (`cpkb.bench.ray_pool`)."""
+
+    def start(self, jobs: Sequence[Job]) -> None: ...
+
+    def next_result(self, timeout: float) -> tuple[bool, dict[str, Any]] | None:
+        """A finished job's `execute` answer, or None if none finished within `timeout`."""
+        ...
+
+    def stop(self) -> None:
+        """Stop the jobs still running; their runs are redone by a rerun."""
+        ...
+
+
+class LocalPool:
+    """`workers` spawned processes on this machine."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: Any = None
+        self._results: Any = None
+
+    def start(self, jobs: Sequence[Job]) -> None:
+        context = multiprocessing.get_context("spawn")
+        size = min(self.workers, len(jobs))
+        self._pool = context.Pool(size, initializer=_init_worker, initargs=(os.getpid(),))
+        self._results = self._pool.imap_unordered(execute, jobs, chunksize=1)
+
+    def next_result(self, timeout: float) -> tuple[bool, dict[str, Any]] | None:
+        try:
+            return self._results.next(timeout=timeout)
+        except multiprocessing.TimeoutError:
+            return None
+
+    def stop(self) -> None:
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool.join()
+
+
 class Progress(Protocol):
     """What the runner reports to (a rich progress bar, or nothing)."""
 
@@ -284,11 +324,13 @@ def run_bench(
     progress: Progress | None = None,
     config: Mapping[str, Any] | None = None,
     concurrent: int = 1,
+    pool: RunPool | None = None,
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
     rollout caps, since results under other knobs are another variant. `concurrent`: the runs
     of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers).
+    `pool`: where the runs go (default: a local pool of `workers` processes).
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
     recorded; a rerun with the same `out_dir` picks up exactly where this one stopped.
@@ -302,6 +344,8 @@ def run_bench(
         )
     if concurrent > 1 and kb_service is None:
         raise ValueError("concurrent runs share a knowledge base: they need a service")
+    if concurrent > 1 and pool is not None:
+        raise ValueError("concurrent runs wait for each other on this machine: use the local pool")
     store = ResultStore(out_dir)
     store.pin_config(
         {
@@ -347,15 +391,14 @@ def run_bench(
     deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
     bar = progress or NoProgress()
     bar.start(len(jobs))
-    pool_size = min(max(workers, concurrent), len(jobs))
-    pool = context.Pool(pool_size, initializer=_init_worker, initargs=(os.getpid(),))
+    pool = pool or LocalPool(max(workers, concurrent))
+    pool.start(jobs)
     left = {g.kb_name: g.size for g in open_groups.values()}
     try:
         for name in left if kb_service is not None else ():
             kb_service.create(name)
-        results = pool.imap_unordered(execute, jobs, chunksize=1)
         for _ in range(len(jobs)):
-            ok, record = _next_result(results, deadline)
+            ok, record = _next_result(pool, deadline)
             done = open_groups.get((record["task"], record["method"], int(record["seed"])))
             if done is not None and kb_service is not None:
                 left[done.kb_name] -= 1
@@ -373,14 +416,12 @@ def run_bench(
                 )
             outcome.remaining -= 1
             bar.advance(ok, record)
-        pool.close()
     except multiprocessing.TimeoutError:
         outcome.timed_out = True
     except KeyboardInterrupt:
         outcome.interrupted = True
     finally:
-        pool.terminate()
-        pool.join()
+        pool.stop()
         if manager is not None:
             manager.shutdown()
         bar.stop()
@@ -392,13 +433,12 @@ def run_bench(
     return outcome
 
 
-def _next_result(results: Any, deadline: float | None) -> tuple[bool, dict[str, Any]]:
+def _next_result(pool: RunPool, deadline: float | None) -> tuple[bool, dict[str, Any]]:
     """The next finished run; polls so that the deadline and Ctrl-C are honoured."""
     while True:
         wait = 1.0 if deadline is None else min(1.0, deadline - time.monotonic())
         if wait <= 0:
             raise multiprocessing.TimeoutError
-        try:
-            return results.next(timeout=wait)
-        except multiprocessing.TimeoutError:
-            continue
+        result = pool.next_result(wait)
+        if result is not None:
+            return result

@@ -89,6 +89,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a running cpkb service to share; default: one embedded service for the whole "
         "bench on a temporary SQLite file (a fresh knowledge base per scenario either way)",
     )
+    parser.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="run the scenarios as tasks on the running Ray cluster at ADDRESS (the head's "
+        "host:port, or auto); the cluster's CPUs, not --workers, set how many run at once; "
+        "without --kb-url each Ray worker process embeds its own service (needs the ray extra)",
+    )
     parser.add_argument("--token", default=None, help="access token (default: CPKB_TOKEN)")
     parser.add_argument(
         "--suggest-in",
@@ -177,6 +185,7 @@ def handle(args: argparse.Namespace) -> int:
         config=config_overrides(args),
         concurrent=args.concurrent,
         variants=bench_variants(args.variants),
+        ray_address=args.ray,
     )
     try:
         if args.kb_url is not None and not args.summary_only:
