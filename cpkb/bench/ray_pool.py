@@ -19,6 +19,7 @@ import contextlib
 import logging
 import os
 import shutil
+import socket
 import tempfile
 import threading
 import traceback
@@ -31,6 +32,21 @@ from cpkb.bench.kbs import FIT_WAIT_S, ServiceKbs
 from cpkb.bench.runner import Job, execute
 
 INSTALL_HINT = "pip install -e '.[ray]'"
+CONNECT_TIMEOUT_S = 10.0
+
+
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Fail at once on a head that does not answer: Ray itself retries an unreachable address
+    for ever. `auto` (the cluster this machine belongs to) is left to Ray."""
+    if address == "auto":
+        return
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--ray takes the head's HOST:PORT (or auto), not {address!r}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ValueError(f"no Ray head answers at {address}: {exc}") from None
 
 
 def require_ray() -> None:
@@ -69,6 +85,7 @@ class RayPool:
     def start(self, jobs: Sequence[Job]) -> None:
         import ray
 
+        check_reachable(self.address)
         try:
             ray.init(address=self.address, log_to_driver=False, logging_level=logging.WARNING)
         except (ConnectionError, RuntimeError) as exc:

@@ -171,3 +171,12 @@ def test_concurrent_groups_are_refused_on_ray(
     argv = ["bench", *BENCH, "--out", str(tmp_path / "out"), "--ray", "127.0.0.1:1"]
     assert main([*argv, "--concurrent", "2"]) == 2
     assert "not with --ray" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not HAS_RAY, reason=NO_RAY)
+def test_an_unreachable_head_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    address = f"127.0.0.1:{free_port()}"  # nothing listens there
+    assert main(["bench", *BENCH, "--out", str(tmp_path / "out"), "--ray", address]) == 2
+    assert f"no Ray head answers at {address}" in capsys.readouterr().err
