@@ -177,6 +177,10 @@ class KnowledgeConfig:
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
     development suite's pack tasks it took more rollouts."""
+    body_sizes: bool = False
+    """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
+    knowledge transfers between tasks only for the same object, not for another object of the
+    same name (`planner.failures.graphs`); the paper labels by name."""
     live_points: bool = False
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
@@ -242,6 +246,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
+            "knowledge.body_sizes": False,
         },
     ),
 }

@@ -67,10 +67,15 @@ class WorldGeometry:
 
     `footprints`: each movable body's footprint `(size_x, size_y)`, from which the symmetries
     of its grasps follow. `placement_extents`: each placement decision's half extents
-    `(half_x, half_y)` that its seed's x and y span about its region's centre."""
+    `(half_x, half_y)` that its seed's x and y span about its region's centre. `body_sizes`:
+    each movable body's box `(size_x, size_y, size_z)`."""
 
     footprints: tuple[tuple[str, Extents], ...] = ()
     placement_extents: tuple[tuple[str, Extents], ...] = ()
+    body_sizes: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+
+    def size(self, body: str) -> tuple[float, float, float] | None:
+        return dict(self.body_sizes).get(body)
 
     def footprint(self, body: str) -> Extents | None:
         return dict(self.footprints).get(body)

@@ -28,6 +28,10 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   `square_grasps` (square footprints), `grasp_symmetry` (opposite faces of any box).
 - A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
   the relative pose of two placements is measured in metres (`surrogate.encoding`).
+- A movable body's vertex can be labelled with its size to the millimetre (`body_sizes`), so
+  that a type is about one object, not about whatever another task calls by the same name: a
+  task that reuses `body` for a box of other dimensions meets other constraints, and its
+  points would mislead the first task's model.
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ class Encodings:
     square_grasps: bool = True
     grasp_symmetry: bool = True
     metric_frames: bool = True
+    body_sizes: bool = False
 
 
 @dataclass(frozen=True)
@@ -265,10 +270,21 @@ def failure_graph(
             builder.edge(builder.decision(placing), body_id, "at")
     chain_decisions(builder)
     encodings = encodings if encodings is not None else Encodings()
+    if encodings.body_sizes:
+        _label_sizes(builder.nodes, encodings.geometry)
     domains = encoded_domains(skeleton, check.call, builder.decisions, encodings)
     bind = label_decisions(skeleton, builder.nodes, builder.decisions, domains)
     graph = _task_independent_ids(builder.nodes, builder.edges)
     return FailureGraph(graph, bind, (transition_index, call_index), body)
+
+
+def _label_sizes(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
+    """Each movable body's context vertex labelled `name@XxYxZmm` (see `Encodings.body_sizes`)."""
+    for node_id, node in nodes.items():
+        size = geometry.size(node.label) if node.role == "context" else None
+        if size is not None:
+            mm = "x".join(str(round(v * 1000)) for v in size)
+            nodes[node_id] = node.model_copy(update={"label": f"{node.label}@{mm}mm"})
 
 
 def _task_independent_ids(nodes: dict[str, Node], edges: list[Edge]) -> Graph:

@@ -160,6 +160,7 @@ class KnowledgeSession:
             square_grasps=self.config.square_grasps,
             grasp_symmetry=self.config.grasp_symmetry,
             metric_frames=self.config.metric_frames,
+            body_sizes=self.config.body_sizes,
         )
         self._graphs = _task_graphs(repr(self.skeleton), self._encodings)
         self._active: dict[Key, Activation] = {}

@@ -66,6 +66,10 @@ class PyBulletWorld:
                 (var, self.scene.placement_extents(body, region))
                 for var, (body, region) in self.pose_sources.items()
             ),
+            body_sizes=tuple(
+                (name, tuple(float(v) for v in self.scene.sizes[name][:3]))
+                for name in self.scene.movable_names
+            ),
         )
         self.restore(self._initial)
 

@@ -251,3 +251,22 @@ def test_a_framed_placement_gets_its_half_extents_in_metres():
     assert metric.scale == [0.21, 0.07] and metric.frame == "region2" and metric.heading == 2
     off = Encodings(geometry, metric_frames=False)
     assert pose_of(failure_graph(skeleton, 3, shelf_ik, encodings=off)) == pose_domain("region2")
+
+
+def test_with_body_sizes_a_type_is_about_one_object_not_one_name():
+    """Two tasks that call boxes of other sizes `body` give two types; the same box, one type;
+    obstacles keep their names; switched off, the name alone labels the body (the paper's)."""
+    world = analytic_world("desk")
+    outcome = world.transition(0, {"#dir1": "right"}, None)
+
+    def graph(size: tuple[float, float, float], on: bool = True):
+        geometry = WorldGeometry(body_sizes=(("body", size),))
+        encodings = Encodings(geometry, body_sizes=on)
+        return failure_graph(world.skeleton, 0, outcome.failed, encodings=encodings).graph
+
+    small, large = graph((0.042, 0.037, 0.147)), graph((0.044, 0.049, 0.172))
+    assert small != large
+    assert small == graph((0.0421, 0.0369, 0.1472))  # the same box, measured to the millimetre
+    assert roles(small)["context"] == {"body@42x37x147mm", "pose0", "obstacle2"}
+    assert graph((0.042, 0.037, 0.147), on=False) == graph((0.044, 0.049, 0.172), on=False)
+    assert "body" in roles(graph((0.042, 0.037, 0.147), on=False))["context"]
