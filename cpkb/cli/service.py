@@ -248,37 +248,80 @@ def _types(args: argparse.Namespace) -> int:
     if not types:
         console.print(f"knowledge base {args.kb!r} has no types yet")
         return 0
+    details = _run(args, lambda c: [c.get_type(args.kb, t.type_id) for t in types])
+    differences = _differences(details)
+    columns = ["failure", "decisions", "context"]
+    columns += ["differs in"] if differences else []
+    columns += ["points", "infeasible", "fit", "fitted", "updated"]
+    caption = (
+        "fit: the surrogate's state (ready, fitting, queued, prior, error); fitted: points in "
+        "its latest fit / points stored (a fit has landed when they are equal)"
+    )
+    if differences:
+        caption += (
+            "; differs in: what tells apart types of one failure, decisions and context "
+            "(the edges only that type has)"
+        )
+    ids = {t.type_id: t.type_id for t in types}
+    if console.is_terminal and console.width < WIDE:
+        ids = _short_ids(list(ids))
+        caption += "; type: the start of its id, unique here (`cpkb types | cat` prints them whole)"
     table = Table(
         "type",
-        "failure",
-        "decisions",
-        "context",
-        "points",
-        "infeasible",
-        "fit",
-        "fitted",
-        "updated",
+        *columns,
         title=f"knowledge base {args.kb!r}: {len(types)} types",
-        caption="fit: the surrogate's state (ready, fitting, queued, prior, error); fitted: "
-        "points in its latest fit / points stored (a fit has landed when they are equal)",
+        caption=caption,
     )
-    states = _run(args, lambda c: [c.get_type(args.kb, t.type_id).surrogate for t in types])
-    for t, state in zip(types, states, strict=True):
+    table.columns[0].no_wrap = True  # the id is what a user copies into an API call
+    for t, detail in zip(types, details, strict=True):
         updated = t.updated_at.strftime("%Y-%m-%d %H:%M:%S") if t.updated_at else ""
-        fit, fitted = _fit_state(state, t.n_points)
-        table.add_row(
-            t.type_id,
-            t.failure,
-            ", ".join(t.decisions),
-            ", ".join(t.context),
-            str(t.n_points),
-            str(t.n_infeasible),
-            fit,
-            fitted,
-            updated,
-        )
+        fit, fitted = _fit_state(detail.surrogate, t.n_points)
+        cells = [t.failure, ", ".join(t.decisions), ", ".join(t.context)]
+        cells += [differences.get(t.type_id, "")] if differences else []
+        cells += [str(t.n_points), str(t.n_infeasible), fit, fitted, updated]
+        table.add_row(ids[t.type_id], *cells)
     console.print(table)
     return 0
+
+
+WIDE = 160  # columns a terminal needs for whole type ids beside the rest
+
+
+def _short_ids(type_ids: list[str]) -> dict[str, str]:
+    """Each id cut to the shortest length (8 at least) at which they all stay distinct."""
+    for length in range(8, max(map(len, type_ids)) + 1):
+        if len({t[:length] for t in type_ids}) == len(type_ids):
+            return {t: t[:length] for t in type_ids}
+    return {t: t for t in type_ids}
+
+
+def _differences(details: list[Any]) -> dict[str, str]:
+    """For types that share failure, decisions and context (so their rows look alike), the
+    edges of each that not all of them have; a difference of domains only is named so."""
+    groups: dict[tuple, list[Any]] = {}
+    for d in details:
+        groups.setdefault((d.failure, tuple(d.decisions), tuple(d.context)), []).append(d)
+    out: dict[str, str] = {}
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        edges = {d.type_id: _edges(d.graph) for d in members}
+        common = set.intersection(*edges.values())
+        for d in members:
+            own = sorted(edges[d.type_id] - common)
+            out[d.type_id] = "; ".join(own) if own else "domains or repeated edges"
+    return out
+
+
+def _edges(graph: Any) -> set[str]:
+    """A graph's edges by the labels of their ends (ids are arbitrary), as `a -label-> b`."""
+    label = {n.id: n.label for n in graph.nodes}
+    return {
+        f"{label[e.source]} -{e.label}-> {label[e.target]}"
+        if e.label
+        else f"{label[e.source]} -> {label[e.target]}"
+        for e in graph.edges
+    }
 
 
 def _fit_state(state: Any, n_points: int) -> tuple[str, str]:

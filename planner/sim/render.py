@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,17 @@ from planner.sim.world import PyBulletWorld, SimState
 from planner.world import TransitionOutcome
 
 REGION_COLOR = (0.2, 0.8, 0.2, 0.35)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """PyBullet's orbit camera: `yaw` and `pitch` in degrees (pitch below 0 looks down),
+    `distance` in metres from `target`, the point looked at (world frame)."""
+
+    yaw: float
+    pitch: float
+    distance: float
+    target: tuple[float, float, float]
 
 
 def mark_regions(world: PyBulletWorld) -> None:
@@ -45,17 +57,36 @@ def mark_regions(world: PyBulletWorld) -> None:
         )
 
 
-def snapshot(world: PyBulletWorld, path: Path, *, width: int = 960, height: int = 720) -> None:
-    """Write a PNG of the scene as it stands, seen from behind and above the robot."""
+def snapshot(
+    world: PyBulletWorld,
+    path: Path,
+    *,
+    width: int = 960,
+    height: int = 720,
+    camera: Camera | None = None,
+) -> None:
+    """Write a PNG of the scene as it stands, seen from `camera`, by default from behind and
+    above the robot."""
     import matplotlib.image
 
     client = world.scene.client
-    view = p.computeViewMatrix(
-        cameraEyePosition=[-0.55, 0.75, 1.05],
-        cameraTargetPosition=[0.5, -0.05, 0.05],
-        cameraUpVector=[0, 0, 1],
-        physicsClientId=client,
-    )
+    if camera is None:
+        view = p.computeViewMatrix(
+            cameraEyePosition=[-0.55, 0.75, 1.05],
+            cameraTargetPosition=[0.5, -0.05, 0.05],
+            cameraUpVector=[0, 0, 1],
+            physicsClientId=client,
+        )
+    else:
+        view = p.computeViewMatrixFromYawPitchRoll(
+            cameraTargetPosition=list(camera.target),
+            distance=camera.distance,
+            yaw=camera.yaw,
+            pitch=camera.pitch,
+            roll=0.0,
+            upAxisIndex=2,
+            physicsClientId=client,
+        )
     projection = p.computeProjectionMatrixFOV(
         fov=45, aspect=width / height, nearVal=0.05, farVal=5.0, physicsClientId=client
     )
