@@ -17,7 +17,12 @@ def register(subparsers: Any) -> None:
     plan = subparsers.add_parser(
         "plan",
         help="search bindings for one task",
-        epilog="Exit status: 0 when a feasible binding list was found, 1 when the budget ran "
+        description="Search for a feasible binding list of one task (grasps, placements, "
+        "motions) with PW-UCT and the chosen sampler, and print what it took. The knowledge-"
+        "base methods (cp-bo, cp-bo-paper) post every failure to the knowledge base and use "
+        "what earlier runs learned; without --kb-url an embedded service on ./cpkb.db is used.",
+        epilog="Example: cpkb plan --task desk --method cp-bo --seed 0. "
+        "Exit status: 0 when a feasible binding list was found, 1 when the budget ran "
         f"out, 2 for a usage error, {EXIT_STATUS_HELP}.",
     )
     plan.add_argument("--task", required=True, help="a task name (see `cpkb tasks`) or task file")
@@ -49,7 +54,11 @@ def register(subparsers: Any) -> None:
     plan.set_defaults(handler=_plan)
 
     demo = subparsers.add_parser(
-        "demo", help="deskP then desk with cp-bo on one knowledge base, beside quasi-random"
+        "demo",
+        help="deskP then desk with cp-bo on one knowledge base, beside quasi-random",
+        description="The paper's transfer on one machine: quasi-random on desk, then cp-bo "
+        "learning on deskP and solving desk with what it learned, --seeds times each, and a "
+        "table of rollouts to the first feasible binding. Ends with where to look next.",
     )
     demo.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
     demo.add_argument("--predecessor-rollouts", type=int, default=30, help="deskP budget (30)")

@@ -10,7 +10,15 @@ from cpkb.cli import CliError
 
 
 def register(subparsers: Any) -> None:
-    serve = subparsers.add_parser("serve", help="run the knowledge-base service")
+    serve = subparsers.add_parser(
+        "serve",
+        help="run the knowledge-base service",
+        description="Serve the knowledge base over HTTP: the API under /v1, its documentation "
+        "at /docs, the dashboard at / and Prometheus metrics at /metrics. The database is "
+        "migrated first. Writes and deletes need a bearer token when CPKB_TOKEN is set. Logs "
+        "are JSON lines on stderr. Stop it with Ctrl-C.",
+        epilog="Example: cpkb serve --db sqlite:///lab.db --port 8000",
+    )
     serve.add_argument(
         "--db",
         metavar="URL",
@@ -24,25 +32,47 @@ def register(subparsers: Any) -> None:
 
     db = subparsers.add_parser("db", help="database maintenance")
     db_sub = db.add_subparsers(dest="db_command", required=True, metavar="ACTION")
-    upgrade = db_sub.add_parser("upgrade", help="migrate the database to the latest schema")
+    upgrade = db_sub.add_parser(
+        "upgrade",
+        help="migrate the database to the latest schema",
+        description="Migrate the database to the latest schema (serve does this too) and print "
+        "its revision; creates the tables of a new database.",
+    )
     upgrade.add_argument("--db", metavar="URL", help="database URL (default as for serve)")
     upgrade.set_defaults(handler=_db_upgrade)
 
     kb = subparsers.add_parser("kb", help="list, create or delete knowledge bases")
     kb_sub = kb.add_subparsers(dest="kb_command", required=True, metavar="ACTION")
-    kb_list = kb_sub.add_parser("list", help="knowledge bases with type and point counts")
+    kb_list = kb_sub.add_parser(
+        "list",
+        help="knowledge bases with type and point counts",
+        description="List the knowledge bases of a running service (`cpkb serve`), with how "
+        "many types and points each holds.",
+    )
     _client_options(kb_list)
     kb_list.set_defaults(handler=_kb_list)
     for action, helptext, handler in (
         ("create", "create a knowledge base", _kb_create),
         ("delete", "delete a knowledge base with all its types and points", _kb_delete),
     ):
-        cmd = kb_sub.add_parser(action, help=helptext)
-        cmd.add_argument("name")
+        cmd = kb_sub.add_parser(
+            action,
+            help=helptext,
+            description=f"{helptext[0].upper()}{helptext[1:]}, on a "
+            "running service (`cpkb serve`); needs --token when the service has one set.",
+        )
+        cmd.add_argument("name", help="letters, digits, _ . - (e.g. lab)")
         _client_options(cmd)
         cmd.set_defaults(handler=handler)
 
-    types = subparsers.add_parser("types", help="the CP types of a knowledge base, as a table")
+    types = subparsers.add_parser(
+        "types",
+        help="the CP types of a knowledge base, as a table",
+        description="One row per CP type (a kind of failure with its decisions and context) "
+        "of a knowledge base on a running service: its points, how many infeasible, and "
+        "whether its surrogate has been fitted on them. Pipe it (`| cat`) for whole type ids "
+        "on one line each.",
+    )
     types.add_argument("--kb", default="default", help="knowledge base (default: default)")
     _client_options(types)
     types.set_defaults(handler=_types)

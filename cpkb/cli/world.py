@@ -18,7 +18,12 @@ if TYPE_CHECKING:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    tasks = subparsers.add_parser("tasks", help="list the shipped tasks, one line each")
+    tasks = subparsers.add_parser(
+        "tasks",
+        help="list the shipped tasks, one line each",
+        description="The tasks shipped with cpkb: name, decision variables, and what the task "
+        "asks; pass a name to `cpkb plan --task` or `cpkb render --task`.",
+    )
     tasks.set_defaults(handler=run_tasks)
     render = subparsers.add_parser(
         "render",
