@@ -3,8 +3,9 @@ categorical choice, with the stored points drawn on top. Rendered as SVG rects (
 
 A type's decision space maps labels to domains; a continuous domain is a box, so each of its
 components is one dimension, named `label[i]`. The two chosen dimensions span the grid; every
-other continuous component is held at the middle of its range, and each panel fixes one
-combination of the categorical choices.
+other continuous component is held at a stated slice (`Slice`: the latest infeasible point, so
+that the map passes through a known failure), and each panel fixes one combination of the
+categorical choices. Every panel is drawn; its point count is in its title.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
@@ -21,9 +23,13 @@ from client.models import CategoricalDomain, ContinuousDomain
 Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]
 
-MAX_PANELS = 12
 _PANEL_PX = 180.0  # a 2-d panel's side
 _STRIP_PX = 40.0  # the height of a 1-d strip, the side of a choice-only cell
+_CELL_PX = 80.0  # the width of a choice-only cell, room for its counts
+_COUNT_PX = 22.0
+_LEGEND_W = 480.0
+FEW_POINTS = 5  # a panel with fewer points says so
+FONT = "system-ui, -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif"
 _PAD_LEFT = 46.0
 _PAD_TOP = 30.0
 _PAD_BOTTOM = 34.0
@@ -56,11 +62,49 @@ def continuous_dims(space: dict[str, CategoricalDomain | ContinuousDomain]) -> l
 
 
 def panels_of(space: dict[str, CategoricalDomain | ContinuousDomain]) -> list[dict[str, str]]:
-    """Every combination of categorical choices (at most MAX_PANELS), in the domain's order."""
+    """Every combination of categorical choices, in the domain's order."""
     cats = [(lab, d.choices) for lab, d in space.items() if isinstance(d, CategoricalDomain)]
     combos = itertools.product(*(choices for _, choices in cats))
     labels = [lab for lab, _ in cats]
-    return [dict(zip(labels, combo, strict=True)) for combo in itertools.islice(combos, MAX_PANELS)]
+    return [dict(zip(labels, combo, strict=True)) for combo in combos]
+
+
+@dataclass(frozen=True)
+class Slice:
+    """The values the dimensions off the axes are held at, and where they come from."""
+
+    values: dict[str, list[float]]
+    origin: str
+
+
+def mid_range(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[str, list[float]]:
+    return {
+        lab: [(lo + hi) / 2.0 for lo, hi in zip(d.low, d.high, strict=True)]
+        for lab, d in space.items()
+        if isinstance(d, ContinuousDomain)
+    }
+
+
+def choose_slice(
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    observed: Sequence[tuple[dict[str, Value], bool]],
+) -> Slice:
+    """The latest infeasible point's continuous values (a map through a known failure shows
+    the boundary near it), else the data's median, else mid-range."""
+    mids = mid_range(space)
+    for x, feasible in reversed(observed):
+        if not feasible and all(isinstance(x.get(lab), list) for lab in mids):
+            return Slice({lab: list(x[lab]) for lab in mids}, "the latest infeasible point")  # type: ignore[arg-type]
+    if observed and mids:
+        values = {
+            lab: [
+                statistics.median(float(x[lab][i]) for x, _ in observed)  # type: ignore[index]
+                for i in range(len(mid))
+            ]
+            for lab, mid in mids.items()
+        }
+        return Slice(values, "the data's median")
+    return Slice(mids, "mid-range")
 
 
 def grid_points(
@@ -69,14 +113,11 @@ def grid_points(
     dy: Dim | None,
     panel: dict[str, str],
     n: int,
+    held: dict[str, list[float]] | None = None,
 ) -> list[dict[str, Value]]:
-    """n x n decision values (row-major, y from high to low so that rows draw top-down); one
-    value when there is no continuous dimension at all."""
-    mids = {
-        lab: [(lo + hi) / 2.0 for lo, hi in zip(d.low, d.high, strict=True)]
-        for lab, d in space.items()
-        if isinstance(d, ContinuousDomain)
-    }
+    """n x n decision values (row-major, y from high to low so that rows draw top-down), the
+    other dimensions at `held` (mid-range by default); one value without continuous dims."""
+    mids = held if held is not None else mid_range(space)
     if dx is None:
         return [{**mids, **panel}]
     xs = [dx.low + (dx.high - dx.low) * (i + 0.5) / n for i in range(n)]
@@ -94,14 +135,16 @@ def grid_points(
 
 
 NO_MODEL_COLOUR = "#e5e7eb"
+PALETTE_NAME = "cividis"
 
 
 @functools.cache
 def _palette() -> tuple[str, ...]:
-    """101 colours of matplotlib's RdYlGn, red (infeasible) through yellow to green (feasible)."""
+    """101 colours of matplotlib's cividis, dark blue (infeasible) to yellow (feasible):
+    readable with every common colour-vision deficiency and in grey."""
     from matplotlib import colormaps
 
-    cmap = colormaps["RdYlGn"]
+    cmap = colormaps[PALETTE_NAME]
     return tuple(
         "#{:02x}{:02x}{:02x}".format(*(round(c * 255) for c in cmap(k / 100)[:3]))
         for k in range(101)
@@ -119,6 +162,10 @@ def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
+def _in_panel(x: dict[str, Value], panel: dict[str, str]) -> bool:
+    return all(x.get(lab) == choice for lab, choice in panel.items())
+
+
 def render_heatmap_svg(
     space: dict[str, CategoricalDomain | ContinuousDomain],
     dx: Dim | None,
@@ -126,61 +173,102 @@ def render_heatmap_svg(
     predict: Predict | None,
     observed: Sequence[tuple[dict[str, Value], bool]] = (),
     n: int = 20,
+    held: Slice | None = None,
 ) -> str:
     """Panels side by side (wrapping after four), one predict call for all of them. With no
-    `predict` (no surrogate yet) the cells are grey and only the stored points show."""
+    `predict` (no surrogate yet) the cells are grey and only the stored points show. A panel
+    without points is faded and says so: its colours are the model's extrapolation."""
     panels = panels_of(space)
+    held = held or Slice(mid_range(space), "mid-range")
     if dx is None:
         n = 1
     rows = 1 if dy is None else n
     per_panel = n * rows
-    queries = [p for panel in panels for p in grid_points(space, dx, dy, panel, n)]
+    queries = [p for panel in panels for p in grid_points(space, dx, dy, panel, n, held.values)]
     probs = predict(queries) if predict is not None else [math.nan] * len(queries)
     if len(probs) != len(queries):
         raise ValueError("predict answered a different number of probabilities")
-    w = _PANEL_PX if dx is not None else _STRIP_PX
+    w = _PANEL_PX if dx is not None else _CELL_PX
     h = _PANEL_PX if dy is not None else _STRIP_PX
     cell_w, cell_h = w / n, h / rows
     panel_w = _PAD_LEFT + w + _PANEL_GAP
-    panel_h = _PAD_TOP + h + _PAD_BOTTOM
-    cols = min(len(panels), 4)
-    width = cols * panel_w + 10
-    height = ((len(panels) + cols - 1) // cols) * panel_h + 28
+    panel_h = _PAD_TOP + h + (_PAD_BOTTOM if dx is not None else _COUNT_PX)
+    cols = min(len(panels), 4 if dx is not None else 6)
+    width = max(cols * panel_w + 10, _LEGEND_W)
+    legend_y = ((len(panels) + cols - 1) // cols) * panel_h + 8
+    height = legend_y + 44
     out = [
         f'<svg class="cp-heatmap" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
-        f'aria-label="P(feasible) heat map">'
+        f'aria-label="P(feasible) heat map" font-family="{FONT}">'
     ]
     for k, panel in enumerate(panels):
         ox = (k % cols) * panel_w + _PAD_LEFT
         oy = (k // cols) * panel_h + _PAD_TOP
+        mine = [ok for x, ok in observed if _in_panel(x, panel)]
         title = ", ".join(f"{lab}={choice}" for lab, choice in panel.items()) or "all"
-        out.append(f'<g class="cp-heatmap-panel" data-panel="{escape(title)}">')
+        few = len(mine) < FEW_POINTS
+        note = "no data" if not mine else f"{len(mine)} pts" + (", few" if few else "")
+        fade = "" if mine else ' opacity="0.55"'
+        out.append(
+            f'<g class="cp-heatmap-panel" data-panel="{escape(title)}" '
+            f'data-n-points="{len(mine)}"{fade}>'
+        )
         out.append(
             f'<text x="{ox:.1f}" y="{oy - 10:.1f}" font-size="12" fill="#111827">'
-            f"{escape(title)}</text>"
+            f'{escape(title)} <tspan fill="#6b7280">({note})</tspan></text>'
         )
         chunk = probs[k * per_panel : (k + 1) * per_panel]
         for idx, p in enumerate(chunk):
             j, i = divmod(idx, n)
             tip = "no surrogate yet" if math.isnan(p) else f"p={p:.2f}"
+            data_p = "" if math.isnan(p) else f' data-p="{p:.3f}"'
             out.append(
-                f'<rect x="{ox + i * cell_w:.2f}" y="{oy + j * cell_h:.2f}" '
-                f'width="{cell_w + 0.3:.2f}" height="{cell_h + 0.3:.2f}" fill="{_colour(p)}">'
-                f"<title>{tip}</title></rect>"
+                f'<rect class="cp-cell" x="{ox + i * cell_w:.2f}" y="{oy + j * cell_h:.2f}" '
+                f'width="{cell_w + 0.3:.2f}" height="{cell_h + 0.3:.2f}" fill="{_colour(p)}"'
+                f"{data_p}><title>{tip}</title></rect>"
             )
         if dx is not None:
             out.append(_axes(ox, oy, w, h, dx, dy))
             out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed))
+        else:
+            n_bad = mine.count(False)
+            out.append(
+                f'<text class="cp-counts" x="{ox:.1f}" y="{oy + h + 14:.1f}" font-size="11" '
+                f'fill="#111827">{len(mine) - n_bad} ✓ · {n_bad} ✗</text>'
+            )
         out.append("</g>")
-    swatches = "".join(f'<tspan fill="{_colour(p / 10)}">■</tspan>' for p in range(11))
-    out.append(
-        f'<text x="10" y="{height - 12:.0f}" font-size="11" fill="#374151">'
-        f"P(feasible): 0 {swatches} 1 · dots: stored points (green feasible, red infeasible)"
-        " · other dimensions at mid-range</text>"
-    )
+    out.append(_legend(legend_y, held))
     out.append("</svg>")
     return "".join(out)
+
+
+def _legend(y: float, held: Slice) -> str:
+    swatches = "".join(
+        f'<rect x="{96 + 12 * k}" y="{y}" width="12" height="10" fill="{_colour(k / 10)}"/>'
+        for k in range(11)
+    )
+    return (
+        f'<g class="cp-legend" font-size="11" fill="#374151">'
+        f'<text x="10" y="{y + 9}">P(feasible): 0</text>{swatches}'
+        f'<text x="{96 + 12 * 11 + 4}" y="{y + 9}">1</text>'
+        f'<circle cx="{250}" cy="{y + 5}" r="3.5" fill="#ffffff" stroke="#111827"/>'
+        f'<text x="{258}" y="{y + 9}">feasible point</text>'
+        f'<path d="{_cross(350, y + 5)}" stroke="#ffffff" stroke-width="3.2"/>'
+        f'<path d="{_cross(350, y + 5)}" stroke="#111827" stroke-width="1.6"/>'
+        f'<text x="{358}" y="{y + 9}">infeasible point</text>'
+        f'<text class="cp-slice" x="10" y="{y + 28}">other dimensions held at '
+        f"{escape(held.origin)}: {escape(_slice_text(held.values))}</text></g>"
+    )
+
+
+def _slice_text(values: dict[str, list[float]]) -> str:
+    return "; ".join(f"{lab}=[{', '.join(_fmt(v) for v in vs)}]" for lab, vs in values.items())
+
+
+def _cross(x: float, y: float, r: float = 3.5) -> str:
+    a, b, c, d = x - r, x + r, y - r, y + r
+    return f"M{a:.1f},{c:.1f} L{b:.1f},{d:.1f} M{a:.1f},{d:.1f} L{b:.1f},{c:.1f}"
 
 
 def _axes(ox: float, oy: float, w: float, h: float, dx: Dim, dy: Dim | None) -> str:
@@ -229,9 +317,15 @@ def _observed_marks(
             if not isinstance(vy, list) or len(vy) <= dy.index:
                 continue
             py = oy + (dy.high - vy[dy.index]) / (dy.high - dy.low) * h
-        colour = "#15803d" if feasible else "#b91c1c"
-        marks.append(
-            f'<circle class="cp-observed" cx="{px:.1f}" cy="{py:.1f}" r="2.6" fill="{colour}" '
-            'stroke="#ffffff" stroke-width="0.8"/>'
-        )
+        if feasible:
+            marks.append(
+                f'<circle class="cp-observed" data-feasible="1" cx="{px:.1f}" cy="{py:.1f}" '
+                'r="3.2" fill="#ffffff" stroke="#111827" stroke-width="1.2"/>'
+            )
+        else:
+            cross = _cross(px, py, 3.2)
+            marks.append(
+                f'<g class="cp-observed" data-feasible="0"><path d="{cross}" stroke="#ffffff" '
+                f'stroke-width="3.2"/><path d="{cross}" stroke="#111827" stroke-width="1.6"/></g>'
+            )
     return "".join(marks)

@@ -16,7 +16,7 @@ from markupsafe import Markup
 
 from server.dashboard import views
 from server.dashboard.graph_svg import render_svg
-from server.dashboard.heatmap import Predict, continuous_dims, render_heatmap_svg
+from server.dashboard.heatmap import Predict, choose_slice, continuous_dims, render_heatmap_svg
 from server.errors import NotFound
 from server.services import types
 
@@ -166,12 +166,15 @@ def static(name: str) -> Response:
 
 
 def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
-    store, _ = _state(request)
+    store, hooks = _state(request)
     detail = types.get_type(store, kb, type_id)
-    dx, dy = views.choose_dims(continuous_dims(detail.space), x, y)
+    state = views.surrogate_state(hooks, kb, type_id) or {}
+    relevance = views.dim_lengthscales(detail.space, state.get("lengthscales"))
+    dx, dy = views.choose_dims(continuous_dims(detail.space), x, y, relevance)
     observed = views.observed_points(store, kb, type_id)
     predict = predictor_for(request, kb, type_id)
-    return render_heatmap_svg(detail.space, dx, dy, predict, observed, n=n)
+    held = choose_slice(detail.space, observed)
+    return render_heatmap_svg(detail.space, dx, dy, predict, observed, n=n, held=held)
 
 
 def _heatmap_key(data: dict[str, Any]) -> str:

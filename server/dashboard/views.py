@@ -6,6 +6,7 @@ fragments, are the JSON that the page's script polls.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import asdict
 from datetime import UTC, datetime
@@ -17,6 +18,8 @@ from server.db import Store
 from server.hooks import ServiceHooks
 from server.services import activity, kbs, points, types
 from server.services.types import load_training_points
+from surrogate.domains import space_from_json
+from surrogate.encoding import SpaceEncoder
 
 # (kb, type_id, decision values) -> P(feasible) per value, or None when no surrogate answers.
 Predictor = Callable[[str, str, list[dict[str, Any]]], list[float] | None]
@@ -100,9 +103,29 @@ def type_status(store: Store, hooks: ServiceHooks, kb: str, type_id: str) -> dic
     }
 
 
-def choose_dims(dims: list[Dim], x: str | None, y: str | None) -> tuple[Dim | None, Dim | None]:
-    """The heat map's axes by name (`#pose[0]`); unknown or missing names fall back to the
-    first two continuous dimensions."""
+def dim_lengthscales(space: dict[str, Any], lengthscales: list[float] | None) -> dict[str, float]:
+    """The fitted lengthscale of each continuous dimension (`#pose[1]` -> 0.3), read from the
+    encoder's columns; empty without a fit or when the fit's columns do not match."""
+    if not lengthscales:
+        return {}
+    encoder = SpaceEncoder(space_from_json({k: d.model_dump() for k, d in space.items()}))
+    if len(lengthscales) != encoder.dim:
+        return {}
+    return {
+        f"{var.name}[{i}]": float(lengthscales[var.start + i])
+        for var in encoder.vars
+        if var.table is None
+        for i in range(var.width)
+    }
+
+
+def choose_dims(
+    dims: list[Dim], x: str | None, y: str | None, relevance: dict[str, float] | None = None
+) -> tuple[Dim | None, Dim | None]:
+    """The heat map's axes by name (`#pose[0]`); missing or unknown names fall back to the
+    dimensions the fit finds most relevant (shortest lengthscale first), else the first two."""
+    relevance = relevance or {}
+    dims = sorted(dims, key=lambda d: relevance.get(d.name, math.inf))
     by_name = {d.name: d for d in dims}
     dx = by_name.get(x or "") or (dims[0] if dims else None)
     rest = [d for d in dims if d != dx]
@@ -124,9 +147,12 @@ def type_page(
     detail = types.get_type(store, kb, type_id)
     page: PointsPage = points.list_points(store, kb, type_id, limit=limit, cursor=cursor)
     dims = continuous_dims(detail.space)
-    dx, dy = choose_dims(dims, x, y)
+    status = type_status(store, hooks, kb, type_id)
+    relevance = dim_lengthscales(detail.space, (status["surrogate"] or {}).get("lengthscales"))
+    dx, dy = choose_dims(dims, x, y, relevance)
     return {
-        **type_status(store, hooks, kb, type_id),
+        **status,
+        "relevance": sorted(relevance.items(), key=lambda kv: kv[1]),
         "detail": detail,
         "space": {label: dom.model_dump(mode="json") for label, dom in detail.space.items()},
         "dims": [d.name for d in dims],

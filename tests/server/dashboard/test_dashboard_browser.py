@@ -6,6 +6,7 @@ Playwright drives it through `executable_path`: no browser download.
 
 from __future__ import annotations
 
+import random
 import shutil
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ import pytest
 from client import CpkbClient
 from cpkb.embedded import embedded_service
 from tests.service_support import make_graph, make_point
+from tests.wait_support import wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -39,6 +41,83 @@ def chromium() -> str:
     if path is None:
         pytest.skip("Chromium not found: install Debian's `chromium` package (.ci/run does)")
     return path
+
+
+def _launch(playwright: Any, chromium: str) -> Any:
+    return playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+
+
+def _no_sideways_scroll(page: Any) -> bool:
+    return page.evaluate(
+        "document.scrollingElement.scrollWidth <= document.scrollingElement.clientWidth"
+    )
+
+
+def _boundary_points(graph: dict[str, Any], n: int) -> list[dict[str, Any]]:
+    """Points over the unit cube, infeasible exactly where #pose[2] > 0.5, one #dir only."""
+    rng = random.Random(5)
+    points = []
+    for i in range(n):
+        pose = [rng.random() for _ in range(3)]
+        point = make_point(i, graph=graph, feasible=pose[2] <= 0.5, task="boundary")
+        point["x"] = {"#dir": "top", "#pose": pose}
+        points.append(point)
+    return points
+
+
+def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
+    chromium: str, sqlite_url: str
+) -> None:
+    from playwright.sync_api import sync_playwright
+
+    cube = {"kind": "continuous", "low": [0.0, 0.0, 0.0], "high": [1.0, 1.0, 1.0]}
+    graph = make_graph("Inv-kin", ("box1",), pose_domain=cube)
+    with embedded_service(sqlite_url) as url, CpkbClient(url) as client:
+        type_id = client.post_points("default", _boundary_points(graph, 60))[0].type_id
+
+        def fitted() -> bool:
+            state = client.get_type("default", type_id).surrogate
+            return state is not None and bool(state.lengthscales) and state.n_fitted == 60
+
+        wait_until(fitted, what="the type's first fit")
+        with sync_playwright() as playwright:
+            browser = _launch(playwright, chromium)
+            try:
+                page = browser.new_page(viewport={"width": 1200, "height": 900})
+                page.goto(f"{url}/ui/kbs/default/types/{type_id}")
+                axes = {
+                    page.locator('select[name="x"]').input_value(),
+                    page.locator('select[name="y"]').input_value(),
+                }
+                assert "#pose[2]" in axes
+                probs = page.eval_on_selector_all(
+                    "#heatmap rect.cp-cell[data-p]", "cells => cells.map(c => +c.dataset.p)"
+                )
+                assert len(probs) >= 100
+                assert max(probs) > 0.7 and min(probs) < 0.3
+                expect_text = page.locator("#heatmap .cp-slice").text_content() or ""
+                assert "latest infeasible point" in expect_text
+            finally:
+                browser.close()
+
+
+def test_pages_fit_a_400_px_wide_screen(chromium: str, sqlite_url: str) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    with embedded_service(sqlite_url) as url, CpkbClient(url) as client:
+        type_id = client.post_points("default", _points(make_graph(), 0, 12))[0].type_id
+        with sync_playwright() as playwright:
+            browser = _launch(playwright, chromium)
+            try:
+                page = browser.new_page(viewport={"width": 400, "height": 800})
+                page.goto(f"{url}/")
+                expect(page.locator("#types-table tbody tr")).to_have_count(1)
+                assert _no_sideways_scroll(page)
+                page.goto(f"{url}/ui/kbs/default/types/{type_id}")
+                expect(page.locator("svg.cp-graph")).to_be_visible()
+                assert _no_sideways_scroll(page)
+            finally:
+                browser.close()
 
 
 def _points(graph: dict[str, Any], start: int, n: int) -> list[dict[str, Any]]:
@@ -88,13 +167,13 @@ def test_dashboard_in_headless_chromium(chromium: str, sqlite_url: str, tmp_path
                 )
                 panels = page.locator("#heatmap svg.cp-heatmap g.cp-heatmap-panel")
                 expect(panels).to_have_count(5)
-                expect(page.locator("#heatmap circle.cp-observed")).to_have_count(45)
+                expect(page.locator("#heatmap .cp-observed")).to_have_count(45)
                 expect(page.locator("#points-table tbody tr")).to_have_count(45)
                 expect(page.locator("#surrogate-panel")).to_be_visible()
 
                 client.post_points("default", _points(blocked, 45, 3))
                 expect(page.locator("#n-points")).to_have_text("48", timeout=LIVE_TIMEOUT_MS)
-                expect(page.locator("#heatmap circle.cp-observed")).to_have_count(
+                expect(page.locator("#heatmap .cp-observed")).to_have_count(
                     48, timeout=LIVE_TIMEOUT_MS
                 )
                 shot = tmp_path / "type.png"

@@ -10,6 +10,8 @@ from pydantic import TypeAdapter
 from client.models import Domain
 from server.dashboard.heatmap import (
     NO_MODEL_COLOUR,
+    _colour,
+    choose_slice,
     continuous_dims,
     grid_points,
     panels_of,
@@ -23,6 +25,10 @@ SPACE = TypeAdapter(dict[str, Domain]).validate_python(
         "#pose": {"kind": "continuous", "low": [0.0, 0.0, -3.0], "high": [1.0, 2.0, 3.0]},
     }
 )
+
+
+def _marks(element: ET.Element) -> list[ET.Element]:
+    return [e for e in element.iter() if e.get("class") == "cp-observed"]
 
 
 def _right_half_feasible(xs: list[dict]) -> list[float]:
@@ -58,7 +64,7 @@ def test_cells_are_coloured_by_the_prediction_and_points_are_marked() -> None:
     ]
     svg = render_heatmap_svg(SPACE, dx, dy, _right_half_feasible, observed, n=10)
     root = ET.fromstring(svg)
-    panels = {g.get("data-panel"): g for g in root.iter(f"{SVG_NS}g")}
+    panels = {g.get("data-panel"): g for g in root.iter(f"{SVG_NS}g") if g.get("data-panel")}
     assert set(panels) == {"#dir=front", "#dir=top"}
     top_cells = [
         r
@@ -70,8 +76,9 @@ def test_cells_are_coloured_by_the_prediction_and_points_are_marked() -> None:
     left = {r.get("fill") for r in top_cells if float(r.get("x")) < middle}
     right = {r.get("fill") for r in top_cells if float(r.get("x")) >= middle}
     assert len(left) == 1 and len(right) == 1 and left != right
-    assert len(panels["#dir=top"].findall(f"{SVG_NS}circle")) == 1
-    assert len(panels["#dir=front"].findall(f"{SVG_NS}circle")) == 2
+    assert [m.get("data-feasible") for m in _marks(panels["#dir=top"])] == ["1"]
+    assert [m.get("data-feasible") for m in _marks(panels["#dir=front"])] == ["0", "0"]
+    assert panels["#dir=top"].get("data-n-points") == "1"
 
 
 def test_without_a_surrogate_the_cells_are_grey_and_the_points_still_show() -> None:
@@ -81,7 +88,7 @@ def test_without_a_surrogate_the_cells_are_grey_and_the_points_still_show() -> N
     cells = [r for r in root.iter(f"{SVG_NS}rect") if r.find(f"{SVG_NS}title") is not None]
     assert {r.get("fill") for r in cells} == {NO_MODEL_COLOUR}
     assert {r.find(f"{SVG_NS}title").text for r in cells} == {"no surrogate yet"}
-    assert len(list(root.iter(f"{SVG_NS}circle"))) == 1
+    assert len(_marks(root)) == 1
 
 
 def test_a_space_without_continuous_dimensions_gets_one_cell_per_choice() -> None:
@@ -99,3 +106,45 @@ def test_a_space_without_continuous_dimensions_gets_one_cell_per_choice() -> Non
     titles = [t.text for t in root.iter(f"{SVG_NS}title")]
     assert titles == ["p=0.10", "p=0.20", "p=0.30"]
     assert not math.isnan(float(titles[0][2:]))
+
+
+def test_every_panel_is_drawn_and_panels_without_points_say_so() -> None:
+    space = TypeAdapter(dict[str, Domain]).validate_python(
+        {
+            "#a": {"kind": "categorical", "choices": ["p", "q", "r", "s"]},
+            "#b": {"kind": "categorical", "choices": ["u", "v", "w", "z"]},
+        }
+    )
+    observed = [({"#a": "p", "#b": "u"}, True), ({"#a": "p", "#b": "u"}, False)]
+    root = ET.fromstring(render_heatmap_svg(space, None, None, None, observed))
+    panels = [g for g in root.iter(f"{SVG_NS}g") if g.get("data-panel")]
+    assert len(panels) == 16  # more than the 12 once drawn silently
+    counts = [t.text for t in root.iter(f"{SVG_NS}text") if t.get("class") == "cp-counts"]
+    assert counts[0] == "1 ✓ · 1 ✗" and counts[1] == "0 ✓ · 0 ✗"
+    assert panels[0].get("opacity") is None and panels[1].get("opacity") is not None
+    assert "no data" in "".join(panels[1].itertext())
+
+
+def test_the_slice_goes_through_the_latest_infeasible_point_and_is_named() -> None:
+    observed = [
+        ({"#dir": "top", "#pose": [0.1, 0.2, 0.3]}, False),
+        ({"#dir": "top", "#pose": [0.4, 0.5, 0.6]}, False),
+        ({"#dir": "top", "#pose": [0.9, 0.9, 0.9]}, True),
+    ]
+    held = choose_slice(SPACE, observed)
+    assert held.values == {"#pose": [0.4, 0.5, 0.6]} and "infeasible" in held.origin
+    feasible_only = choose_slice(SPACE, [(x, True) for x, _ in observed])
+    assert feasible_only.values == {"#pose": [0.4, 0.5, 0.6]} and "median" in feasible_only.origin
+    assert choose_slice(SPACE, []).values == {"#pose": [0.5, 1.0, 0.0]}
+    dx, dy, _ = continuous_dims(SPACE)
+    pts = grid_points(SPACE, dx, dy, {"#dir": "top"}, 3, held.values)
+    assert {p["#pose"][2] for p in pts} == {0.6}
+    svg = render_heatmap_svg(SPACE, dx, dy, None, observed, n=4, held=held)
+    assert "held at the latest infeasible point" in svg
+
+
+def test_the_scale_is_not_red_to_green() -> None:
+    low, high = _colour(0.0), _colour(1.0)
+    red_low = int(low[1:3], 16) > int(low[5:7], 16)  # RdYlGn starts red
+    green_high = int(high[3:5], 16) > max(int(high[1:3], 16), int(high[5:7], 16)) + 40
+    assert not red_low and not green_high
