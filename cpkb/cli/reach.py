@@ -86,9 +86,9 @@ def checked_kb_name(name: str) -> str:
 def probe(url: str, token: str | None, kb: str | None = None) -> None:
     """Check that the service at `url` answers and takes this token for writes.
 
-    With `kb`, creates that knowledge base if it is missing (what a planner run does first);
-    without, deletes a knowledge base that cannot exist, which touches nothing yet needs the
-    write permission a run will need.
+    With `kb`, creates that knowledge base if it is missing (what a planner run does first).
+    Either way it deletes a knowledge base that cannot exist, which touches nothing yet needs
+    the write permission a run will need (finding `kb` already there needs only a read).
     """
     from client import CpkbClient, CpkbError, NotFound
 
@@ -100,7 +100,6 @@ def probe(url: str, token: str | None, kb: str | None = None) -> None:
             client.health()
             if kb is not None:
                 client.create_kb(kb, exist_ok=True)
-                return
             with contextlib.suppress(NotFound):
                 client.delete_kb(f"cpkb-probe-{uuid.uuid4().hex}")
     except CpkbError as exc:
