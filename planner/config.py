@@ -299,21 +299,27 @@ def parse_assignments(items: Iterable[str]) -> dict[str, str]:
     return out
 
 
-def load_file(path: str | Path) -> dict[str, Any]:
-    """The dotted overrides of a YAML or JSON file: nested (`cp_bo: {lookahead: false}`) or
-    dotted (`cp_bo.lookahead: false`) keys; a file holding a run's recorded `config` works."""
+def read_data_file(path: str | Path, what: str) -> Any:
+    """The parsed content of a YAML or JSON file (JSON by its `.json` suffix); a ConfigError
+    names `what` the file is and what is wrong with it."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ConfigError(f"cannot read configuration file {path}: {exc.strerror}") from None
+        raise ConfigError(f"cannot read {what} {path}: {exc.strerror}") from None
     import yaml
 
     try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+        return json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (ValueError, yaml.YAMLError) as exc:
         kind = "JSON" if path.suffix == ".json" else "YAML"
-        raise ConfigError(f"{path} is not valid {kind}: {exc}") from None
+        raise ConfigError(f"{what} {path} is not valid {kind}: {exc}") from None
+
+
+def load_file(path: str | Path) -> dict[str, Any]:
+    """The dotted overrides of a YAML or JSON file: nested (`cp_bo: {lookahead: false}`) or
+    dotted (`cp_bo.lookahead: false`) keys; a file holding a run's recorded `config` works."""
+    data = read_data_file(path, "configuration file")
     if data is None:
         return {}
     if not isinstance(data, Mapping):

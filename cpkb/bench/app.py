@@ -19,7 +19,13 @@ from cpkb.bench.plots import write_plots
 from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
-from cpkb.bench.scenarios import TRANSFER_METHODS, expand, predecessors, task_kinds
+from cpkb.bench.scenarios import (
+    TRANSFER_METHODS,
+    expand,
+    method_run,
+    predecessors,
+    task_kinds,
+)
 from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
 from cpkb.bench.variants import Variant
 
@@ -88,8 +94,7 @@ def check_request(settings: BenchSettings) -> None:
     if unknown_m:
         raise ValueError(f"unknown method {unknown_m[0]!r} (known: {', '.join(sorted(methods))})")
     needed = set(settings.tasks)
-    runs = [settings.variants[m].method if m in settings.variants else m for m in settings.methods]
-    if any(m in TRANSFER_METHODS for m in runs):
+    if any(method_run(m, settings.variants) in TRANSFER_METHODS for m in settings.methods):
         needed |= {p for t in settings.tasks for p in predecessors(t)}
     missing_files = [t for t in needed if _is_task_file(t) and not Path(t).is_file()]
     if missing_files:

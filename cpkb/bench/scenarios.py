@@ -101,6 +101,11 @@ def task_kinds(tasks: Iterable[str]) -> dict[str, str]:
     return kinds
 
 
+def method_run(method: str, variants: Mapping[str, Variant]) -> str:
+    """The method that `method` runs: a variant's, or itself."""
+    return variants[method].method if method in variants else method
+
+
 def expand(
     tasks: Sequence[str],
     methods: Sequence[str],
@@ -110,8 +115,7 @@ def expand(
     """Every (task, method, seed), seed-major; a method may be one of `variants`. A transfer
     method (or a variant of one) needs a task with predecessors."""
     variants = variants or {}
-    runs = {m: variants[m].method if m in variants else m for m in methods}
-    transfer = [m for m in methods if runs[m] in TRANSFER_METHODS]
+    transfer = [m for m in methods if method_run(m, variants) in TRANSFER_METHODS]
     for task in tasks:
         if transfer and not predecessors(task):
             raise ValueError(

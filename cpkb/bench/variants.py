@@ -18,15 +18,12 @@ configuration the planner ran with.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from planner.config import ConfigError, PlanConfig, typed_overrides
+from planner.config import ConfigError, PlanConfig, read_data_file, typed_overrides
 
 
 @dataclass(frozen=True)
@@ -66,13 +63,4 @@ def parse_variants(data: object, known_methods: set[str]) -> dict[str, Variant]:
 
 
 def load_variants(path: str | Path, known_methods: set[str]) -> dict[str, Variant]:
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read variants file {path}: {exc.strerror}") from None
-    try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (ValueError, yaml.YAMLError) as exc:
-        raise ConfigError(f"variants file {path} is not valid YAML/JSON: {exc}") from None
-    return parse_variants(data, known_methods)
+    return parse_variants(read_data_file(path, "variants file"), known_methods)

@@ -58,17 +58,13 @@ class PyBulletWorld:
             "robot",
         )
         self.geometry = WorldGeometry(
-            footprints=tuple(
-                (name, (float(self.scene.sizes[name][0]), float(self.scene.sizes[name][1])))
+            body_sizes=tuple(
+                (name, tuple(float(v) for v in self.scene.sizes[name][:3]))
                 for name in self.scene.movable_names
             ),
             placement_extents=tuple(
                 (var, self.scene.placement_extents(body, region))
                 for var, (body, region) in self.pose_sources.items()
-            ),
-            body_sizes=tuple(
-                (name, tuple(float(v) for v in self.scene.sizes[name][:3]))
-                for name in self.scene.movable_names
             ),
         )
         self.restore(self._initial)

@@ -177,7 +177,7 @@ def grasp_domain_of(fg) -> object:
 
 
 def with_footprint(size: tuple[float, float], **switches: bool) -> Encodings:
-    return Encodings(WorldGeometry(footprints=(("body", size),)), **switches)
+    return Encodings(WorldGeometry(body_sizes=(("body", (*size, 0.1)),)), **switches)
 
 
 def encoded_grasps(fg) -> dict[str, tuple[float, ...]]:
