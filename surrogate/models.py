@@ -5,7 +5,8 @@ terms of one fit, so that scoring a whole NSGA-II population is a few matrix pro
 no Python loop per point, safe to share between threads).
 
 - `fit_classifier`: variational GP classifier (Matern 5/2 ARD, constant mean, Bernoulli/probit
-  likelihood) with at most `max_inducing` inducing points (k-means initialised), SMOTE against class
+  likelihood) with at most `max_inducing` inducing points (k-means initialised), trained on at
+  most `max_points` points (the boundary first, then both classes alike), SMOTE against class
   imbalance, warm start from the previous fit. With one class only or fewer than `MIN_POINTS`
   points it returns the distance prior `PriorPredictor` instead.
 - `fit_regression`: exact GP regression (Matern 5/2 ARD, constant mean) for GP-UCB, and for the
@@ -27,12 +28,16 @@ import torch
 from imblearn.over_sampling import SMOTE
 from scipy.special import ndtr
 from sklearn.cluster import KMeans
+from sklearn.neighbors import NearestNeighbors
 
 from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
 
 MIN_POINTS = 4
 JITTER = 1e-6
+BOUNDARY_SHARE = 0.03  # of a subsampled fit's points, at most this many chosen as wrong ones
+WARM_LR = 0.03  # Adam's first steps are lr-sized whatever the gradient: small from a warm start
+NEIGHBOURS = 8  # without a last fit: whether most of these have the other label
 
 
 class FeasibilityPredictor(Protocol):
@@ -180,6 +185,8 @@ class Fit:
     train_accuracy: float | None = None
     lengthscales: list[float] | None = None
     warm_state: dict[str, Any] | None = field(default=None, repr=False)
+    n_trained: int | None = None  # points the fit trained on (n_fitted unless subsampled)
+    n_inducing: int | None = None
 
 
 class _SVGP(gpytorch.models.ApproximateGP):
@@ -260,6 +267,41 @@ def _balance(z: np.ndarray, y: np.ndarray, seed: int) -> tuple[np.ndarray, np.nd
     return np.asarray(zb, dtype=float), np.asarray(yb, dtype=bool)
 
 
+def _training_subset(z: np.ndarray, y: np.ndarray, budget: int, seed: int, last: Any) -> np.ndarray:
+    """Indices of at most `budget` points to train on (all of them if they fit).
+
+    First the points that matter most, up to `BOUNDARY_SHARE` of the budget: those the `last`
+    fit got wrong (without a last fit: those whose nearest neighbours in a random pool mostly
+    have the other label). Then both classes alike, so that the minority keeps all its points
+    up to half of what is left and SMOTE has what it needs to balance the rest. Each point draws
+    one random key for good (a stream seeded by `seed`, so a point keeps its key as the type
+    grows): the same points stay in from one refit to the next and a warm start stays close.
+    """
+    n = len(y)
+    if budget <= 0 or n <= budget:
+        return np.arange(n)
+    keys = np.random.default_rng(seed).random(n)
+    chosen = np.zeros(n, dtype=bool)
+    if last is not None:
+        candidates = np.arange(n)
+        margin = (last.proba(z) - 0.5) * np.where(y, 1.0, -1.0)
+    else:
+        candidates = np.argsort(keys)[: 4 * budget]
+        k = min(NEIGHBOURS, len(candidates) - 1)
+        near = NearestNeighbors(n_neighbors=k + 1).fit(z[candidates])
+        _, idx = near.kneighbors(z[candidates])
+        margin = 0.5 - (y[candidates][idx[:, 1:]] != y[candidates][:, None]).mean(axis=1)
+    order = np.argsort(margin, kind="stable")[: int(budget * BOUNDARY_SHARE)]
+    chosen[candidates[order[margin[order] < 0.0]]] = True
+    minority = bool(y.sum() * 2 < n)
+    for label in (minority, not minority):
+        pool = np.flatnonzero(~chosen & (y == label))
+        left = budget - int(chosen.sum())
+        take = min(len(pool), left // 2 if label == minority else left)
+        chosen[pool[np.argsort(keys[pool], kind="stable")[:take]]] = True
+    return np.flatnonzero(chosen)
+
+
 def _kmeans_centres(z: np.ndarray, m: int, seed: int) -> np.ndarray:
     unique = np.unique(z, axis=0)
     if len(unique) <= m:
@@ -275,10 +317,14 @@ def fit_classifier(
     seed: int = 0,
     warm: Fit | None = None,
     max_inducing: int = SurrogateConfig.max_inducing,
+    max_points: int = SurrogateConfig.max_fit_points,
     max_iters: int = 100,
     lr: float = 0.1,
 ) -> Fit:
     """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible).
+
+    At most `max_points` of them are trained on (`_training_subset`; 0: all), so that a fit of
+    a large type costs what one of `max_points` does.
 
     The default steps and rate are the cheapest that reach the held-out accuracy of a longer,
     slower fit (BENCHMARKS.md, "Measurements behind the defaults"): a transfer target waits for
@@ -295,9 +341,11 @@ def fit_classifier(
         prior = PriorPredictor(feasible=z[y], infeasible=z[~y])
         return Fit("prior", prior, len(y), time.perf_counter() - t0)
     torch.manual_seed(seed)
-    zb, yb = _balance(z, y, seed)
-    m = min(max_inducing, len(np.unique(zb, axis=0)))
     state = warm.warm_state if warm is not None and warm.kind == "vgp" else None
+    last = warm.predictor if warm is not None and state is not None else None
+    subset = _training_subset(z, y, max_points, seed, last)
+    zb, yb = _balance(z[subset], y[subset], seed)
+    m = min(max_inducing, len(np.unique(zb, axis=0)))
     if state is not None and state["m"] == m:
         inducing = torch.as_tensor(state["model"]["variational_strategy.inducing_points"])
     else:
@@ -324,7 +372,7 @@ def fit_classifier(
         lambda: -elbo(model(tx), ty),
         [*model.parameters(), *likelihood.parameters()],
         max_iters // 3 if reused else max_iters,  # a new inducing set starts its posterior anew
-        lr,
+        min(lr, WARM_LR) if reused else lr,
     )
     predictor = _vgp_predictor(model)
     accuracy = float(((predictor.proba(z) > 0.5) == y).mean())
@@ -338,6 +386,8 @@ def fit_classifier(
         accuracy,
         predictor.lengthscale.tolist(),
         warm_state,
+        len(subset),
+        m,
     )
 
 

@@ -20,6 +20,8 @@ def install(app: FastAPI) -> None:
     config = EngineConfig(
         fit_in_child_process=settings.surrogate_fit_process,
         max_inducing=settings.surrogate_max_inducing,
+        max_fit_points=settings.surrogate_max_fit_points,
+        instant_fit_points=settings.surrogate_instant_fit_points,
         refresh_s=settings.surrogate_refresh_s,
         pending_ttl_s=settings.surrogate_pending_ttl_s,
         prefit_types=settings.surrogate_prefit_types,

@@ -4,8 +4,15 @@ One entry per (kb, type): the type's points (encoded, loaded incrementally), its
 the predictor requests use. Fits never run on the request path: new points (the `points_added`
 hook) or a periodic freshness check put the type on a queue; one coordinator thread takes types
 off it one at a time, loads the new points, and fits with a warm start from the previous fit in
-a single fit worker (a child process by default). A request always answers with the latest
-finished fit (or the stated prior of `surrogate.models.PriorPredictor` until there is one).
+a single fit worker (a child process by default). A type is queued once however often it is
+asked for (its next fit takes in all its new points), and the queue serves the types a request
+is waiting on first, then the types without a fit, then the rest.
+
+A new type does not wait for that queue: while it has no background fit and at most
+`instant_fit_points` points, a second thread of the service's own process gives it an exact GP
+at once (`fit_label_regression`, a fraction of a second at that size). A request always answers
+with the latest finished fit (or the stated prior of `surrogate.models.PriorPredictor` until
+there is one).
 """
 
 from __future__ import annotations
@@ -13,7 +20,6 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -27,7 +33,7 @@ from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, W
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit
+from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, fit_label_regression, warm_up
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
@@ -35,6 +41,7 @@ from surrogate.suggest import TypeModel
 
 log = logging.getLogger("cpkb.surrogates")
 Key = tuple[str, str]
+ASKED, FIRST, REFRESH = 0, 1, 2  # queue priorities, the lowest served first
 
 
 @dataclass(frozen=True)
@@ -42,6 +49,8 @@ class EngineConfig:
     fit_in_child_process: bool = True  # False: fit in a thread of the server's own process
     fit_threads: int = 1
     max_inducing: int = SurrogateConfig.max_inducing
+    max_fit_points: int = SurrogateConfig.max_fit_points
+    instant_fit_points: int = SurrogateConfig.instant_fit_points
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
@@ -84,11 +93,14 @@ class SurrogateEngine:
         self.config = config or EngineConfig()
         self.pending = PendingBook(self.config.pending_ttl_s)
         self._entries: dict[Key, _Entry] = {}
-        self._queue: OrderedDict[Key, None] = OrderedDict()
+        self._queue: dict[Key, int] = {}  # type -> priority, in the order queued
         self._busy: Key | None = None
+        self._first: dict[Key, None] = {}  # types waiting for an instant first model
+        self._first_busy: Key | None = None
         self._cond = threading.Condition()
         self._stopping = False
         self._thread: threading.Thread | None = None
+        self._first_thread: threading.Thread | None = None
         self._fitter: Fitter | None = None
         self.fits = 0
 
@@ -103,6 +115,11 @@ class SurrogateEngine:
             self._stopping = False
             self._thread = threading.Thread(target=self._run, name="cpkb-surrogates", daemon=True)
             self._thread.start()
+            if self.config.instant_fit_points > 0:
+                self._first_thread = threading.Thread(
+                    target=self._run_first, name="cpkb-first-models", daemon=True
+                )
+                self._first_thread.start()
         self._prefit()
 
     def stop(self) -> None:
@@ -112,11 +129,13 @@ class SurrogateEngine:
             self._stopping = True
             self._cond.notify_all()
             thread, self._thread = self._thread, None
+            first, self._first_thread = self._first_thread, None
             fitter, self._fitter = self._fitter, None
         if fitter is not None:
             fitter.terminate()
-        if thread is not None:
-            thread.join(timeout=30)
+        for t in (thread, first):
+            if t is not None:
+                t.join(timeout=30)
 
     def _new_fitter(self) -> Fitter:
         if not self.config.fit_in_child_process:
@@ -168,9 +187,22 @@ class SurrogateEngine:
 
     # --- hooks and request path ----------------------------------------------------------
     def notify(self, kb: str, type_ids: frozenset[str]) -> None:
-        """`points_added` hook: queue the types (only the cheap part runs on the request)."""
+        """`points_added` hook: queue the types (only the cheap part runs on the request), and
+        those that may want an instant first model for that lane too."""
         for type_id in sorted(type_ids):
-            self._enqueue((kb, type_id))
+            key = (kb, type_id)
+            self._enqueue(key)
+            with self._cond:
+                entry = self._entries.get(key)
+                if self._first_thread is not None and (
+                    entry is None
+                    or entry.fit is None
+                    or (
+                        entry.fit.kind != "vgp" and entry.n_points <= self.config.instant_fit_points
+                    )
+                ):
+                    self._first[key] = None
+                    self._cond.notify_all()
 
     def forget(self, kb: str) -> None:
         """`kb_deleted` hook: drop the knowledge base's models and queued fits, so that one
@@ -178,8 +210,9 @@ class SurrogateEngine:
         with self._cond:
             for key in [k for k in self._entries if k[0] == kb]:
                 del self._entries[key]
-            for key in [k for k in self._queue if k[0] == kb]:
-                del self._queue[key]
+            for queue in (self._queue, self._first):
+                for key in [k for k in queue if k[0] == kb]:
+                    del queue[key]
 
     def source(self, kb: str) -> KbModels:
         """The models of one knowledge base, as `surrogate.suggest` asks for them."""
@@ -192,6 +225,8 @@ class SurrogateEngine:
         key = (kb, type_id)
         with self._cond:
             entry = self._entries.get(key)
+            if key in self._queue:
+                self._queue[key] = ASKED  # a planner waits on it: fit it next
         if entry is None:
             entry = self._load_new(key)
         elif time.monotonic() - entry.checked_at > self.config.refresh_s:
@@ -220,7 +255,7 @@ class SurrogateEngine:
         if entry.n_fitted == entry.n_points:
             return entry
         if needs_model(entry.y):
-            self._enqueue(key, urgent=True)
+            self._enqueue(key, ASKED)
             return entry
         with self._cond:
             entry.predictor = prior(entry.z, entry.y)
@@ -236,7 +271,10 @@ class SurrogateEngine:
     def state(self, kb: str, type_id: str) -> SurrogateState | None:
         with self._cond:
             entry = self._entries.get((kb, type_id))
-            queued = (kb, type_id) in self._queue or self._busy == (kb, type_id)
+            key = (kb, type_id)
+            queued = (
+                key in self._queue or key in self._first or key in (self._busy, self._first_busy)
+            )
         if entry is None:
             return SurrogateState(status="queued" if queued else "not loaded")
         fit = entry.fit
@@ -279,7 +317,7 @@ class SurrogateEngine:
         """Block until no type is queued or fitting (tests, benchmarks); False on timeout."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._queue or self._busy is not None:
+            while self._queue or self._first or self._busy or self._first_busy:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     return False
@@ -287,17 +325,21 @@ class SurrogateEngine:
         return True
 
     # --- internals ---------------------------------------------------------------------
-    def _enqueue(self, key: Key, *, urgent: bool = False) -> None:
-        """Queue a type for a refresh; an `urgent` one (requested right now) goes first."""
+    def _enqueue(self, key: Key, priority: int | None = None) -> None:
+        """Queue a type for a refresh, once: queued again, it keeps its place and the higher of
+        its priorities (by default FIRST for a type without a fit, else REFRESH)."""
         with self._cond:
-            self._queue[key] = None
-            if urgent:
-                self._queue.move_to_end(key, last=False)
+            if priority is None:
+                entry = self._entries.get(key)
+                priority = FIRST if entry is None or entry.fit is None else REFRESH
+            self._queue[key] = min(priority, self._queue.get(key, priority))
             self._cond.notify_all()
         if self._thread is None:
             self.start()
 
-    def _load_new(self, key: Key) -> _Entry:
+    def _load_new(self, key: Key, *, queue: bool = True) -> _Entry:
+        """A type's entry from all its points, queued for a fit if it needs one (unless the
+        caller is the coordinator about to fit it)."""
         points = load_training_points(self.store, *key)
         space = space_from_json({label: d.model_dump() for label, d in points.space.items()})
         encoder = SpaceEncoder(space)
@@ -307,7 +349,7 @@ class SurrogateEngine:
         entry.checked_at = time.monotonic()
         with self._cond:
             entry = self._entries.setdefault(key, entry)
-        if needs_model(entry.y):
+        if queue and needs_model(entry.y):
             self._enqueue(key)
         return entry
 
@@ -318,7 +360,8 @@ class SurrogateEngine:
                     self._cond.wait()
                 if self._stopping:
                     return
-                key, _ = self._queue.popitem(last=False)
+                key = min(self._queue, key=self._queue.__getitem__)  # the first of the most urgent
+                del self._queue[key]
                 self._busy = key
             try:
                 self._refresh(key)
@@ -339,12 +382,13 @@ class SurrogateEngine:
         with self._cond:
             entry = self._entries.get(key)
         if entry is None:
-            entry = self._load_new(key)
+            entry = self._load_new(key, queue=False)
         else:
             with entry.merging:
                 new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
                 entry = self._merge(key, entry, new)
-        if entry.n_fitted == entry.n_points:
+        instant = entry.fit is not None and entry.fit.kind != "vgp"  # to be replaced
+        if entry.n_fitted == entry.n_points and not instant:
             return  # nothing new (after an error: retried when points arrive)
         if not needs_model(entry.y):
             with self._cond:
@@ -362,7 +406,7 @@ class SurrogateEngine:
             entry.fitted_at = datetime.now(UTC)
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
-        args = (z, y, 0, warm, self.config.max_inducing)
+        args = (z, y, 0, warm, self.config.max_inducing, self.config.max_fit_points)
         fitter = self._fitter_for_next_fit()
         try:
             return fitter.fit(*args)
@@ -371,6 +415,55 @@ class SurrogateEngine:
                 raise
             log.warning("fit worker died; starting a new one")
             return self._fitter_for_next_fit(replacing=fitter).fit(*args)
+
+    def _run_first(self) -> None:
+        """The instant lane: pays this process's first-fit cost at once, then fits each new
+        type it is given (`_first_model`) until the engine stops."""
+        warm_up()
+        while True:
+            with self._cond:
+                while not self._first and not self._stopping:
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                key = next(iter(self._first))
+                del self._first[key]
+                self._first_busy = key
+            try:
+                self._first_model(key)
+            except NotFound:
+                pass  # deleted meanwhile: the coordinator drops its entry
+            except Exception:  # the background fit still comes; this lane must go on
+                log.exception("instant first model failed for %s/%s", *key)
+            finally:
+                with self._cond:
+                    self._first_busy = None
+                    self._cond.notify_all()
+
+    def _first_model(self, key: Key) -> None:
+        """An exact GP for a type that has no background fit yet and few enough points;
+        a background fit that lands first wins, and replaces this one when it lands later."""
+        with self._cond:
+            entry = self._entries.get(key)
+        if entry is None:
+            entry = self._load_new(key)
+        else:
+            with entry.merging:
+                new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
+                entry = self._merge(key, entry, new)
+        with self._cond:
+            z, y, n, fit = entry.z, entry.y, entry.n_points, entry.fit
+        small = n <= self.config.instant_fit_points
+        if not small or not needs_model(y) or entry.n_fitted >= n or (fit and fit.kind == "vgp"):
+            return
+        first = fit_label_regression(z[:n], y[:n], seed=0)
+        seen = seen_choices(entry.encoder, z[:n])
+        with self._cond:
+            current = entry.fit is None or entry.fit.kind != "vgp"
+            if current and n > entry.n_fitted and self._entries.get(key) is entry:
+                entry.fit, entry.predictor, entry.seen = first, first.predictor, seen
+                entry.n_fitted, entry.status, entry.error = n, "ready", None
+                entry.fitted_at = datetime.now(UTC)
 
     def _merge(self, key: Key, entry: _Entry, new: TrainingPoints) -> _Entry:
         if new.origin != entry.origin:  # deleted and created again (elsewhere): start afresh

@@ -7,6 +7,7 @@ import numpy as np
 import torch
 
 from server.lifeline import exit_with_parent
+from surrogate.config import SurrogateConfig
 from surrogate.models import Fit, fit_classifier, warm_up
 
 
@@ -21,5 +22,14 @@ def init_worker(threads: int, server_pid: int) -> None:
     warm_up()
 
 
-def fit_job(z: np.ndarray, y: np.ndarray, seed: int, warm: Fit | None, max_inducing: int) -> Fit:
-    return fit_classifier(z, y, seed=seed, warm=warm, max_inducing=max_inducing)
+def fit_job(
+    z: np.ndarray,
+    y: np.ndarray,
+    seed: int,
+    warm: Fit | None,
+    max_inducing: int,
+    max_points: int = SurrogateConfig.max_fit_points,
+) -> Fit:
+    return fit_classifier(
+        z, y, seed=seed, warm=warm, max_inducing=max_inducing, max_points=max_points
+    )

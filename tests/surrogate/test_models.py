@@ -143,3 +143,58 @@ def test_a_choice_no_point_holds_gets_the_prior_not_the_fits_extrapolation() -> 
     front = encoder.encode_points([{"d": "front", "p": [0.3]}])
     assert guarded.proba(right)[0] == fit.predictor.proba(right)[0] < 0.3
     assert guarded.proba(front)[0] == prior.proba(front)[0] > 0.45
+
+
+def test_a_large_type_trains_on_a_bounded_balanced_subset() -> None:
+    """A fit trains on at most `max_points` points: every minority point up to half of them,
+    the rest of the majority; so a large type costs what a small one does."""
+    from surrogate.models import _training_subset
+
+    rng = np.random.default_rng(6)
+    z = rng.random((5000, 3))
+    y = z[:, 0] > 0.9  # 10 % feasible: the minority
+    subset = _training_subset(z, y, 400, 0, None)
+    assert len(subset) == 400 and len(np.unique(subset)) == 400
+    assert 180 <= int(y[subset].sum()) <= 220  # balanced, not 10 %
+    same = _training_subset(
+        np.vstack([z, rng.random((50, 3))]), np.r_[y, np.ones(50, bool)], 400, 0, None
+    )
+    assert len(np.intersect1d(subset, same)) > 300  # a refit keeps most of the same points
+    assert np.array_equal(_training_subset(z[:300], y[:300], 400, 0, None), np.arange(300))
+
+
+class _WrongInASlice:
+    """A last fit that knows the half space except in a thin slice, where it is wrong."""
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        truth = z[:, 0] + 0.5 * z[:, 1] > 0.7
+        return np.where(truth != (z[:, 2] < 0.004), 0.9, 0.1)
+
+
+def test_points_the_last_fit_got_wrong_are_trained_on() -> None:
+    from surrogate.models import BOUNDARY_SHARE, _training_subset
+
+    z, y = half_space(4000, 7)
+    subset = _training_subset(z, y, 1000, 0, _WrongInASlice())
+    missed = np.flatnonzero(z[:, 2] < 0.004)
+    assert 0 < len(missed) <= 1000 * BOUNDARY_SHARE
+    assert set(missed) <= set(subset)
+
+
+@pytest.mark.slow
+def test_fit_cost_stops_growing_with_the_points() -> None:
+    """Structure, not clocks: a fit of 6,000 points trains on as many points, with as many
+    inducing points, as one of 600, and costs about as much CPU (generous bound)."""
+    import time
+
+    def fit(n: int) -> tuple[object, float]:
+        z, y = half_space(n, 8)
+        cpu = time.process_time()
+        result = fit_classifier(z, y, seed=0, max_points=600, max_inducing=32, max_iters=40)
+        return result, time.process_time() - cpu
+
+    small, small_cpu = fit(600)
+    large, large_cpu = fit(6000)
+    assert small.n_trained == large.n_trained == 600 and large.n_fitted == 6000
+    assert small.n_inducing == large.n_inducing == 32
+    assert large_cpu < 4 * small_cpu + 1.0
