@@ -8,6 +8,10 @@ exactly once, and nothing else stored at all.
 
     .venv/bin/python benchmarks/load.py --planners 8 --backend sqlite
     .venv/bin/python benchmarks/load.py --planners 32 --backend postgres
+    .venv/bin/python benchmarks/load.py --planners 1 --writers 4 --seed-points 1000
+
+`--writers N` adds N workers that post the same kind of points without pause and never ask
+(the last line: suggestions on a 1,000-point type while its points keep pouring in).
 
 Starts `cpkb serve` itself (fresh SQLite file, or a fresh PostgreSQL database that is dropped
 afterwards), prints a table, and writes a JSON result file in benchmarks/results/.
@@ -41,6 +45,7 @@ from typing import Any
 import httpx
 import numpy as np
 
+from client.models import MAX_POINTS_PER_POST
 from cpkb.embedded import wait_ready
 
 REPO = Path(__file__).resolve().parent.parent
@@ -186,11 +191,35 @@ async def seed_types(http: httpx.AsyncClient, kb: str, per_type: int, tally: Tal
     rng = random.Random(0)
     points = [p for i in range(per_type) for p in points_for(*random_x(rng), worker="seed", seq=i)]
     tally.attempted.update(p["key"] for p in points)
-    response = await http.post(f"/v1/kbs/{kb}/points", json={"points": points})
-    response.raise_for_status()
-    tally.acknowledged.extend(p["key"] for p in points)
-    results = response.json()["results"]
+    results = []
+    for start in range(0, len(points), MAX_POINTS_PER_POST):
+        batch = points[start : start + MAX_POINTS_PER_POST]
+        response = await http.post(f"/v1/kbs/{kb}/points", json={"points": batch})
+        response.raise_for_status()
+        tally.acknowledged.extend(p["key"] for p in batch)
+        results += response.json()["results"]
     return {"ik": results[0]["type_id"], "place": results[1]["type_id"]}
+
+
+async def surrogate_states(http: httpx.AsyncClient, kb: str, type_ids: dict) -> dict:
+    """Each type's surrogate state as its detail shows it (points, fitted, last fit's cost)."""
+    out = {}
+    for name, type_id in type_ids.items():
+        detail = (await http.get(f"/v1/kbs/{kb}/types/{type_id}")).raise_for_status().json()
+        out[name] = detail.get("surrogate")
+    return out
+
+
+async def wait_fitted(http: httpx.AsyncClient, kb: str, type_ids: dict, timeout: float) -> None:
+    """Start the clock once the seeded types have their fits (or after `timeout`)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        states = await surrogate_states(http, kb, type_ids)
+        if all(
+            s and s.get("kind") == "vgp" and s.get("status") == "ready" for s in states.values()
+        ):
+            return
+        await asyncio.sleep(0.5)
 
 
 async def stored_keys(http: httpx.AsyncClient, kb: str) -> tuple[Counter, int]:
@@ -218,7 +247,8 @@ async def stored_keys(http: httpx.AsyncClient, kb: str) -> tuple[Counter, int]:
 async def run_load(base_url: str, args: argparse.Namespace, token: str | None) -> dict:
     headers = {"Authorization": f"Bearer {token}"} if token else {}
     limits = httpx.Limits(
-        max_connections=args.planners + 4, max_keepalive_connections=args.planners
+        max_connections=args.planners + args.writers + 4,
+        max_keepalive_connections=args.planners + args.writers,
     )
     tally = Tally()
     async with httpx.AsyncClient(
@@ -228,25 +258,33 @@ async def run_load(base_url: str, args: argparse.Namespace, token: str | None) -
         (await http.post("/v1/kbs", json={"name": kb})).raise_for_status()
         type_ids = await seed_types(http, kb, args.seed_points, tally)
         seeded = len(tally.acknowledged)
+        if not args.no_suggest:
+            await wait_fitted(http, kb, type_ids, timeout=300)
         start = time.monotonic()
         deadline = start + args.duration
-        await asyncio.gather(
-            *(
-                planner(
-                    http,
-                    kb,
-                    type_ids,
-                    f"w{i:02d}",
-                    deadline,
-                    tally,
-                    args.seed + i,
-                    args.think,
-                    not args.no_suggest,
-                )
-                for i in range(args.planners)
+        askers = [
+            planner(
+                http,
+                kb,
+                type_ids,
+                f"w{i:02d}",
+                deadline,
+                tally,
+                args.seed + i,
+                args.think,
+                not args.no_suggest,
             )
-        )
+            for i in range(args.planners)
+        ]
+        writers = [
+            planner(
+                http, kb, type_ids, f"p{i:02d}", deadline, tally, args.seed + 1000 + i, 0, False
+            )
+            for i in range(args.writers)
+        ]
+        await asyncio.gather(*askers, *writers)
         elapsed = time.monotonic() - start
+        states = await surrogate_states(http, kb, type_ids)
         keys, stored = await stored_keys(http, kb)
         kb_row = next(
             (k for k in (await http.get("/v1/kbs")).json() if k["name"] == kb), {"n_points": None}
@@ -290,6 +328,7 @@ async def run_load(base_url: str, args: argparse.Namespace, token: str | None) -
         "errors": dict(tally.errors),
         "n_errors": sum(tally.errors.values()),
         "exactly_once": check,
+        "surrogates_at_end": states,
     }
 
 
@@ -405,6 +444,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--no-suggest", action="store_true", help="post points only (ingest under concurrency)"
     )
+    parser.add_argument(
+        "--writers", type=int, default=0, help="workers that only post, without pause"
+    )
     parser.add_argument("--think", type=float, default=0.0, help="seconds between calls")
     parser.add_argument("--timeout", type=float, default=30.0, help="per-request seconds")
     parser.add_argument("--seed", type=int, default=0)
@@ -414,9 +456,11 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if not 1 <= args.planners <= 256:
         parser.error("--planners must be between 1 and 256")
+    if not 0 <= args.writers <= 256:
+        parser.error("--writers must be between 0 and 256")
     args.out.mkdir(parents=True, exist_ok=True)
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    mode = "-postonly" if args.no_suggest else ""
+    mode = ("-postonly" if args.no_suggest else "") + (f"-{args.writers}w" if args.writers else "")
     stem = f"load-{args.backend}-{args.planners}p{mode}-{stamp}"
     if args.url:
         result = asyncio.run(run_load(args.url.rstrip("/"), args, args.token))
@@ -429,6 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {
         "backend": args.backend,
         "planners": args.planners,
+        "writers": args.writers,
         "duration_s": args.duration,
         "seed_points_per_type": args.seed_points,
         "suggest": not args.no_suggest,

@@ -337,6 +337,8 @@ def fit_classifier(
     t0 = time.perf_counter()
     z = np.asarray(z, dtype=float)
     y = np.asarray(y, dtype=bool)
+    if len(z) != len(y):
+        raise ValueError(f"{len(z)} points and {len(y)} labels")
     if len(y) < MIN_POINTS or y.all() or not y.any():
         prior = PriorPredictor(feasible=z[y], infeasible=z[~y])
         return Fit("prior", prior, len(y), time.perf_counter() - t0)
