@@ -54,9 +54,12 @@ class Settings(BaseSettings):
     surrogate_max_inducing: int = Field(default=SurrogateConfig.max_inducing, ge=8, le=1024)
     # A fit trains on at most this many of a type's points (0: all); see SurrogateConfig.
     surrogate_max_fit_points: int = Field(default=SurrogateConfig.max_fit_points, ge=0)
-    # A new type gets an exact GP in the service's process up to this many points (0: never).
+    # A new type gets a short fit in the service's process up to this many points (0: never).
     surrogate_instant_fit_points: int = Field(
         default=SurrogateConfig.instant_fit_points, ge=0, le=2000
+    )
+    surrogate_instant_fit_iters: int = Field(
+        default=SurrogateConfig.instant_fit_iters, ge=1, le=1000
     )
     # A type in use loads its new points when they are older than this (one indexed query).
     surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)

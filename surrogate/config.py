@@ -19,9 +19,10 @@ class SurrogateConfig:
     """Points a classifier fit trains on at most (0: all): the ones the last fit got wrong or
     was unsure of, then both classes alike; so a fit's cost stops growing with its type."""
     instant_fit_points: int = 128
-    """A type without a fit up to this many points gets an exact GP at once, in the service's
-    own process, while the background fit is on its way (0: wait for the background fit). Its
-    snapshot holds an n x n matrix: at max_inducing points, as large as a fit's."""
+    """A type without a fit up to this many points gets one at once, in the service's own
+    process, while the background fit is on its way (0: wait for the background fit)."""
+    instant_fit_iters: int = 30
+    """That first fit's optimiser steps (the background fit's warm start takes it from there)."""
     prior_weight: float = 0.45
     """How far the stated prior moves P(feasible) away from 0.5 at an observed point."""
     prior_lengthscale: float = 0.1

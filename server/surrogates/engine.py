@@ -9,10 +9,11 @@ asked for (its next fit takes in all its new points), and the queue serves the t
 is waiting on first, then the types without a fit, then the rest.
 
 A new type does not wait for that queue: while it has no background fit and at most
-`instant_fit_points` points, a second thread of the service's own process gives it an exact GP
-at once (`fit_label_regression`, a fraction of a second at that size). A request always answers
-with the latest finished fit (or the stated prior of `surrogate.models.PriorPredictor` until
-there is one).
+`instant_fit_points` points, a second thread of the service's own process gives it a short fit
+at once (`instant_fit_iters` steps, a fraction of a second at that size), which the background
+fit then takes as its warm start. A request
+always answers with the latest finished fit (or the stated prior of
+`surrogate.models.PriorPredictor` until there is one).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, W
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, fit_label_regression, warm_up
+from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, fit_classifier, warm_up
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
@@ -51,6 +52,7 @@ class EngineConfig:
     max_inducing: int = SurrogateConfig.max_inducing
     max_fit_points: int = SurrogateConfig.max_fit_points
     instant_fit_points: int = SurrogateConfig.instant_fit_points
+    instant_fit_iters: int = SurrogateConfig.instant_fit_iters
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
@@ -81,6 +83,7 @@ class _Entry:
     error: str | None = None
     merging: threading.Lock = field(default_factory=threading.Lock, repr=False)
     seen: Seen = ()  # the fit's categorical choices (UnseenChoices)
+    instant: bool = False  # the fit is the instant lane's: the background fit is still to come
 
     @property
     def n_points(self) -> int:
@@ -197,9 +200,7 @@ class SurrogateEngine:
                 if self._first_thread is not None and (
                     entry is None
                     or entry.fit is None
-                    or (
-                        entry.fit.kind != "vgp" and entry.n_points <= self.config.instant_fit_points
-                    )
+                    or (entry.instant and entry.n_points <= self.config.instant_fit_points)
                 ):
                     self._first[key] = None
                     self._cond.notify_all()
@@ -387,8 +388,7 @@ class SurrogateEngine:
             with entry.merging:
                 new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
                 entry = self._merge(key, entry, new)
-        instant = entry.fit is not None and entry.fit.kind != "vgp"  # to be replaced
-        if entry.n_fitted == entry.n_points and not instant:
+        if entry.n_fitted == entry.n_points and not entry.instant:
             return  # nothing new (after an error: retried when points arrive)
         if not needs_model(entry.y):
             with self._cond:
@@ -403,7 +403,7 @@ class SurrogateEngine:
         with self._cond:
             entry.fit, entry.predictor, entry.seen = fit, fit.predictor, seen
             entry.n_fitted, entry.status, entry.error = n, "ready", None
-            entry.fitted_at = datetime.now(UTC)
+            entry.fitted_at, entry.instant = datetime.now(UTC), False
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
         args = (z, y, 0, warm, self.config.max_inducing, self.config.max_fit_points)
@@ -441,8 +441,8 @@ class SurrogateEngine:
                     self._cond.notify_all()
 
     def _first_model(self, key: Key) -> None:
-        """An exact GP for a type that has no background fit yet and few enough points;
-        a background fit that lands first wins, and replaces this one when it lands later."""
+        """A short fit, here and now, of a type that has no background fit yet and few enough
+        points; a background fit that lands first wins, and replaces this one when it lands."""
         with self._cond:
             entry = self._entries.get(key)
         if entry is None:
@@ -452,18 +452,28 @@ class SurrogateEngine:
                 new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
                 entry = self._merge(key, entry, new)
         with self._cond:
-            z, y, n, fit = entry.z, entry.y, entry.n_points, entry.fit
-        small = n <= self.config.instant_fit_points
-        if not small or not needs_model(y) or entry.n_fitted >= n or (fit and fit.kind == "vgp"):
+            z, y, n, fit, instant = entry.z, entry.y, entry.n_points, entry.fit, entry.instant
+        if n > self.config.instant_fit_points or not needs_model(y) or entry.n_fitted >= n:
             return
-        first = fit_label_regression(z[:n], y[:n], seed=0)
+        if fit is not None and not instant:
+            return
+        config = self.config
+        first = fit_classifier(
+            z[:n],
+            y[:n],
+            seed=0,
+            warm=fit,
+            max_inducing=config.max_inducing,
+            max_points=config.max_fit_points,
+            max_iters=config.instant_fit_iters,
+        )
         seen = seen_choices(entry.encoder, z[:n])
         with self._cond:
-            current = entry.fit is None or entry.fit.kind != "vgp"
+            current = entry.fit is None or entry.instant
             if current and n > entry.n_fitted and self._entries.get(key) is entry:
                 entry.fit, entry.predictor, entry.seen = first, first.predictor, seen
                 entry.n_fitted, entry.status, entry.error = n, "ready", None
-                entry.fitted_at = datetime.now(UTC)
+                entry.fitted_at, entry.instant = datetime.now(UTC), True
 
     def _merge(self, key: Key, entry: _Entry, new: TrainingPoints) -> _Entry:
         if new.origin != entry.origin:  # deleted and created again (elsewhere): start afresh

@@ -106,11 +106,12 @@ def test_a_new_type_has_a_model_at_once_while_a_long_fit_runs(sqlite_url: str) -
                 lambda: client.get(url).json()["surrogate"]["n_fitted"] == 30,
                 what="the instant first model",
             )
-            assert client.get(url).json()["surrogate"]["kind"] == "label-regression"
+            state = client.get(url).json()["surrogate"]
+            assert state["kind"] == "vgp" and state["iterations"] <= 30  # the instant lane's
             p = client.post(
                 url + "/predict",
                 json={"x": [{"#dir": "top", "#pose": [v, 0.5, 0.0]} for v in (0.1, 0.9)]},
             ).json()["p_feasible"]
             assert p[0] < 0.3 and p[1] > 0.7
         assert engine.wait_idle(timeout=300)
-        assert client.get(url).json()["surrogate"]["kind"] == "vgp"
+        assert not engine._entries[("default", type_id)].instant  # the background fit landed
