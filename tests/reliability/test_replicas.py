@@ -29,7 +29,7 @@ from client import CpkbClient
 pytestmark = [pytest.mark.postgres, pytest.mark.slow]
 
 PLANNERS = 8
-ROUNDS = 6
+ROUNDS = 4
 BATCH = 10
 GRAPHS = [
     ("Inv-kin", ("box1",)),
@@ -37,7 +37,11 @@ GRAPHS = [
     ("Move-Place", ("shelf",)),
     ("Inv-kin", ("box2",)),
 ]
-ENV = {"CPKB_SURROGATE_CLAIM_RETRY_S": "0.3", "CPKB_SURROGATE_REFRESH_S": "0.2"}
+ENV = {
+    "CPKB_SURROGATE_CLAIM_RETRY_S": "0.3",
+    "CPKB_SURROGATE_REFRESH_S": "0.2",
+    "CPKB_SURROGATE_FIT_PROCESS": "false",
+}
 
 
 def graph(i: int, planner: int) -> dict[str, Any]:
