@@ -416,8 +416,8 @@ class SurrogateEngine:
         stored = self.shared.newer(entry.origin[0], entry.n_fitted)
         if stored is None:
             return entry.n_fitted >= entry.n_points
-        # A fit of points this replica has not loaded yet counts as one of the points it holds,
-        # and is loaded again once they are here.
+        # A fit of more points than this replica has loaded serves as a fit of those it holds;
+        # it is loaded again once the rest are here.
         self._install(entry, stored.fit, min(stored.fit.n_fitted, entry.n_points))
         with self._cond:
             entry.fitted_at = stored.fitted_at
