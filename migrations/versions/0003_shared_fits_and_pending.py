@@ -50,6 +50,7 @@ def upgrade() -> None:
         sa.Column("kb_id", sa.Integer(), nullable=False),
         sa.Column("x", sa.JSON(), nullable=False),
         sa.Column("binds", sa.JSON(), nullable=False),
+        sa.Column("owner", sa.String(length=128), nullable=True),
         sa.Column("expires_at", UtcDateTime, nullable=False),
         sa.ForeignKeyConstraint(
             ["kb_id"],
