@@ -225,7 +225,7 @@ def _run(args: argparse.Namespace, call: Any) -> Any:
         except ServiceUnavailable as exc:
             if exc.status is None:
                 raise CliError(
-                    f"cannot reach the knowledge base at {client.base_url} "
+                    f"cannot reach the knowledge base at {', '.join(client.urls)} "
                     "(start it with `cpkb serve`, or pass --kb-url)"
                 ) from exc
             raise CliError(str(exc.detail)) from exc
