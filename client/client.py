@@ -6,12 +6,12 @@ are retried for at least `reconnect_for` seconds, so a long planner run waits ou
 restart; a server never reached (a wrong URL) still fails after `retries`. Point posts are made
 idempotent by a key on every point (generated when the caller gives none), so a retry after a
 lost answer never stores twice.
+4xx answers raise the matching `client.errors` class carrying the server's detail.
 
 `base_url` may name several replicas of one service (`"http://a:8000,http://b:8000"`, or a
 list): a connection error or a 503 moves the client on to the next one at once, and a pause
 comes only after every replica was tried. The keys make a post re-sent to another replica as
 safe as one re-sent to the same.
-4xx answers raise the matching `client.errors` class carrying the server's detail.
 """
 
 from __future__ import annotations
