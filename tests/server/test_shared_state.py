@@ -15,8 +15,10 @@ from server.db import Store
 from server.schema import prepare_database
 from server.services.points import add_points
 from server.services.types import load_training_points
+from server.surrogates.engine import EngineConfig, SurrogateEngine
 from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
+from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier
 
 
@@ -76,6 +78,7 @@ def _type_pk(store: Store) -> int:
     return load_training_points(store, "default", type_id).origin[0]
 
 
+@pytest.mark.slow
 def test_a_stored_fit_loads_as_it_was_saved(store: Store) -> None:
     pk = _type_pk(store)
     rng = np.random.default_rng(0)
@@ -114,3 +117,32 @@ def test_one_claim_per_type_across_replicas(postgres_url: str) -> None:
     finally:
         store_a.dispose()
         store_b.dispose()
+
+
+@pytest.mark.slow
+def test_a_restarted_engine_serves_the_stored_fit_without_fitting(store: Store) -> None:
+    """What a second replica (or the same service after a restart) does with a type the first
+    has fitted: it loads that fit on its first request and fits nothing."""
+    graph = make_graph()
+    points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(30)]
+    type_id = add_points(store, "default", points).results[0].type_id
+    config = EngineConfig(fit_in_child_process=False, prefit_types=0)
+    first = SurrogateEngine(store, config)
+    first.start()
+    try:
+        first.model("default", type_id)
+        assert first.wait_idle(120)
+        assert first.fits == 1
+        fitted = first.model("default", type_id)
+    finally:
+        first.stop()
+    second = SurrogateEngine(store, config)
+    try:
+        served = second.model("default", type_id)
+        assert (served.version, served.n_fitted) == (fitted.version, 30)
+        assert second.wait_idle(120)
+        assert (second.fits, second.adopted) == (0, 1)
+        z = SpaceEncoder(served.space).encode_points([make_point(i)["x"] for i in range(40, 45)])
+        assert np.allclose(served.predictor.proba(z), fitted.predictor.proba(z))
+    finally:
+        second.stop()
