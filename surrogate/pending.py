@@ -3,6 +3,10 @@
 The optimiser pushes new suggestions away from these, so that planners asking at the same moment
 for the same space do not all get one point. An entry leaves the book when a point arrives for one
 of its constraint types at its values, or when it expires (`ttl_s`).
+
+`Pending` is the interface the suggestion core and the service's engine use; `PendingBook`
+keeps the entries in this process, and the service's replicas on one PostgreSQL share theirs
+through the database (`server.surrogates.pending_db.DatabasePendingBook`).
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -28,6 +33,22 @@ class PendingEntry:
     @property
     def type_ids(self) -> frozenset[str]:
         return frozenset(type_id for type_id, _ in self.binds)
+
+
+class Pending(Protocol):
+    """A book of pending suggestions, keyed by knowledge base (see the module's docstring)."""
+
+    ttl_s: float
+
+    def add(
+        self, kb: str, x: Mapping[str, Value], binds: Sequence[tuple[str, Mapping[str, str]]]
+    ) -> None: ...
+
+    def for_request(self, kb: str, type_ids: frozenset[str]) -> list[dict[str, Value]]: ...
+
+    def answered(self, kb: str, type_id: str, points: Sequence[Mapping[str, Value]]) -> int: ...
+
+    def count(self, kb: str) -> int: ...
 
 
 def _same(a: Value, b: object) -> bool:
@@ -49,7 +70,9 @@ class PendingBook:
         self._lock = threading.Lock()
         self._by_kb: dict[str, list[PendingEntry]] = {}
 
-    def add(self, kb: str, x: Mapping[str, Value], binds: Sequence[tuple[str, Mapping[str, str]]]):
+    def add(
+        self, kb: str, x: Mapping[str, Value], binds: Sequence[tuple[str, Mapping[str, str]]]
+    ) -> None:
         entry = PendingEntry(
             dict(x),
             tuple((t, tuple(sorted(b.items()))) for t, b in binds),
@@ -76,7 +99,7 @@ class PendingBook:
             return 0
         with self._lock:
             entries = self._live(kb)
-            keep = [e for e in entries if not _answers(e, type_id, points)]
+            keep = [e for e in entries if not answers(e, type_id, points)]
             dropped = len(entries) - len(keep)
             self._by_kb[kb] = keep
             return dropped
@@ -92,7 +115,7 @@ class PendingBook:
         return entries
 
 
-def _answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Value]]) -> bool:
+def answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Value]]) -> bool:
     for bound_type, bind in entry.binds:
         if bound_type != type_id:
             continue

@@ -181,6 +181,7 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
     with store.transaction(write=True) as session:
         kb_pk = kb_id(session, kb)
         types = _types(session, kb_pk, resolved)
+        _lock_types(session, [pk for pk, _ in types.values()])
         now = utcnow()
         announced: set[str] = set()
         for graph, row in zip(resolved, rows, strict=True):
@@ -236,6 +237,21 @@ def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
         touched = frozenset(type_ids[row["type_pk"]] for row in inserted)
     n_new_types = sum(1 for _, created in types.values() if created)
     return PostOutcome(results, touched, n_new=len(inserted), n_new_types=n_new_types)
+
+
+def _lock_types(session: Session, type_pks: list[int]) -> None:
+    """On PostgreSQL, lock the post's type rows (in id order: no deadlock) before its points
+    take their ids, so that the posts of one type commit in the order of their point ids: a
+    reader that loads a type's points after its last seen id (the surrogate engine, on every
+    replica) then never skips a point committed late under a lower id. SQLite's writers
+    already queue for the whole database."""
+    if session.get_bind().dialect.name == "postgresql" and type_pks:
+        session.execute(
+            select(_TYPES.c.id)
+            .where(_TYPES.c.id.in_(sorted(type_pks)))
+            .order_by(_TYPES.c.id)
+            .with_for_update()
+        )
 
 
 def _stored_results(
