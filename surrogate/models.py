@@ -377,7 +377,7 @@ def fit_classifier(
         min(lr, WARM_LR) if reused else lr,
     )
     predictor = _vgp_predictor(model)
-    accuracy = float(((predictor.proba(z) > 0.5) == y).mean())
+    accuracy = float(((predictor.proba(z[subset]) > 0.5) == y[subset]).mean())  # trained on
     warm_state = {"m": m, "model": {k: v.detach().clone() for k, v in model.state_dict().items()}}
     return Fit(
         "vgp",
