@@ -53,6 +53,8 @@ from surrogate.suggest import TypeModel
 log = logging.getLogger("cpkb.surrogates")
 Key = tuple[str, str]
 ASKED, FIRST, REFRESH = 0, 1, 2  # queue priorities, the lowest served first
+_WARMED = threading.Event()  # torch's first-fit cost is paid once per process
+_WARM_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -500,9 +502,12 @@ class SurrogateEngine:
             return self._fitter_for_next_fit(replacing=fitter).fit(*args)
 
     def _run_first(self) -> None:
-        """The instant lane: pays this process's first-fit cost at once, then fits each new
-        type it is given (`_first_model`) until the engine stops."""
-        warm_up()
+        """The instant lane: pays this process's first-fit cost at once (once per process),
+        then fits each new type it is given (`_first_model`) until the engine stops."""
+        with _WARM_LOCK:
+            if not _WARMED.is_set():
+                warm_up()
+                _WARMED.set()
         while True:
             with self._cond:
                 while not self._first and not self._stopping:
