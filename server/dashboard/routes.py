@@ -6,18 +6,20 @@ renderers; the pages re-render their changing parts server-side and the script s
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query, Request
-from fastapi.responses import HTMLResponse, JSONResponse, Response
+from fastapi import APIRouter, Depends, Query, Request
+from fastapi.responses import HTMLResponse, JSONResponse, Response, StreamingResponse
 from fastapi.templating import Jinja2Templates
 from markupsafe import Markup
 
 from server.dashboard import views
+from server.dashboard.export import export_stream
 from server.dashboard.graph_svg import render_svg
 from server.dashboard.heatmap import Predict, choose_slice, continuous_dims, render_heatmap_svg
-from server.errors import NotFound
+from server.errors import InvalidInput, NotFound
 from server.services import types
 
 HERE = Path(__file__).parent
@@ -32,6 +34,35 @@ router = APIRouter(include_in_schema=False)
 
 DimName = Annotated[str | None, Query(max_length=200)]
 GridSize = Annotated[int, Query(ge=4, le=40)]
+KbName = Annotated[str | None, Query(max_length=64)]
+PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
+
+
+def table_query(
+    feasible: Annotated[Literal["", "true", "false"], Query(description="'' for both labels")] = "",
+    task: Annotated[str, Query(max_length=128, description="'' for every task")] = "",
+    order: Literal["newest", "oldest"] = "newest",
+    after: PointId = None,
+    before: PointId = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = views.POINTS_PER_PAGE,
+    x: DimName = None,
+    y: DimName = None,
+) -> views.TableQuery:
+    """The points table's query string: unknown values are a 422, never silently ignored."""
+    if after is not None and before is not None:
+        raise InvalidInput("give after= or before=, not both")
+    return views.TableQuery(
+        feasible=None if feasible == "" else feasible == "true",
+        task=task or None,
+        newest_first=order == "newest",
+        after=after,
+        before=before,
+        limit=limit,
+        axes=(x, y),
+    )
+
+
+Table = Annotated[views.TableQuery, Depends(table_query)]
 
 
 def _fmt_value(value: Any) -> str:
@@ -81,11 +112,20 @@ def predictor_for(request: Request, kb: str, type_id: str) -> Predict | None:
     return run
 
 
+Offset = Annotated[int, Query(ge=0, le=10**9)]
+TypesLimit = Annotated[int, Query(ge=1, le=500)]
+
+
 @router.get("/", response_class=HTMLResponse)
-def index(request: Request, kb: Annotated[str | None, Query(max_length=64)] = None) -> Response:
+def index(
+    request: Request,
+    kb: KbName = None,
+    offset: Offset = 0,
+    limit: TypesLimit = views.TYPES_PER_PAGE,
+) -> Response:
     store, _ = _state(request)
     try:
-        data = views.overview(store, kb)
+        data = views.overview(store, kb, offset=offset, limit=limit)
     except NotFound as exc:
         return _not_found(request, exc)
     return templates.TemplateResponse(
@@ -94,9 +134,14 @@ def index(request: Request, kb: Annotated[str | None, Query(max_length=64)] = No
 
 
 @router.get("/ui/api/overview")
-def overview_json(kb: Annotated[str | None, Query(max_length=64)] = None, *, request: Request):
+def overview_json(
+    request: Request,
+    kb: KbName = None,
+    offset: Offset = 0,
+    limit: TypesLimit = views.TYPES_PER_PAGE,
+) -> JSONResponse:
     store, _ = _state(request)
-    data = views.overview(store, kb)
+    data = views.overview(store, kb, offset=offset, limit=limit)
     return JSONResponse({**data, "fragments": _fragments("_overview.html", **data)})
 
 
@@ -105,14 +150,12 @@ def type_page(
     request: Request,
     kb: str,
     type_id: str,
-    x: DimName = None,
-    y: DimName = None,
-    limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    cursor: Annotated[str | None, Query(max_length=32)] = None,
+    table: Table,
 ) -> Response:
     store, hooks = _state(request)
+    x, y = table.axes
     try:
-        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, limit=limit, cursor=cursor)
+        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
     except NotFound as exc:
         return _not_found(request, exc)
     # Both SVGs are ours, every text in them escaped by the renderers.
@@ -129,16 +172,12 @@ def type_page(
 
 
 @router.get("/ui/api/kbs/{kb}/types/{type_id}")
-def type_json(request: Request, kb: str, type_id: str) -> JSONResponse:
+def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResponse:
     store, hooks = _state(request)
-    data = views.type_status(store, hooks, kb, type_id)
-    return JSONResponse(
-        {
-            **data,
-            "heatmap_key": _heatmap_key(data),
-            "fragments": _fragments("_type.html", **data),
-        }
-    )
+    data = views.type_status(store, hooks, kb, type_id, table)
+    fragments = _fragments("_type.html", **data)
+    data["table"] = {k: v for k, v in data["table"].items() if k != "query"}
+    return JSONResponse({**data, "heatmap_key": _heatmap_key(data), "fragments": fragments})
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
@@ -152,6 +191,18 @@ def heatmap_svg(
     request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
 ) -> Response:
     return Response(_heatmap(request, kb, type_id, x, y, n), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/export.zip")
+def export_zip(request: Request, kb: str) -> Response:
+    """The whole knowledge base: types.json and one CSV per type (see server.dashboard.export)."""
+    store, hooks = _state(request)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    return StreamingResponse(
+        export_stream(store, hooks, kb),
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="cpkb-{kb}-{stamp}.zip"'},
+    )
 
 
 @router.get("/ui/static/{name}")

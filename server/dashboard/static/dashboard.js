@@ -1,6 +1,7 @@
 // Keeps a dashboard page current without a reload: polls the page's JSON endpoint
-// (data-poll on <main>), swaps in the server-rendered fragments it carries, and redraws the
-// heat map when new points or a new surrogate version arrive.
+// (data-poll on <main>, the page's own filters and page included), swaps in the
+// server-rendered fragments it carries, and redraws the heat map when new points or a new
+// surrogate version arrive. A hidden tab does not poll; it catches up when shown again.
 (function () {
   "use strict";
   const main = document.querySelector("main[data-poll]");
@@ -9,7 +10,9 @@
     if (live) live.textContent = "";
     return;
   }
-  const every = 3000;
+  const every = 5000;
+  let timer = null;
+  let running = false;
   const heatmapEvery = 10000;
   let heatmapAt = 0;
 
@@ -30,7 +33,15 @@
     box.dataset.key = key;
   }
 
+  function schedule(delay) {
+    window.clearTimeout(timer);
+    timer = null;
+    if (document.visibilityState === "visible") timer = window.setTimeout(tick, delay);
+  }
+
   async function tick() {
+    if (running) return;
+    running = true;
     try {
       const response = await fetch(main.dataset.poll, {
         cache: "no-store",
@@ -47,10 +58,19 @@
     } catch (error) {
       setLive("cannot reach the service (" + error.message + "), retrying", false);
     } finally {
-      window.setTimeout(tick, every);
+      running = false;
+      schedule(every);
     }
   }
 
+  document.addEventListener("visibilitychange", function () {
+    if (document.visibilityState === "visible") {
+      schedule(0);
+    } else {
+      schedule(every);
+      setLive("paused while hidden", true);
+    }
+  });
   setLive("live", true);
-  window.setTimeout(tick, every);
+  schedule(every);
 })();
