@@ -6,6 +6,7 @@ renderers; the pages re-render their changing parts server-side and the script s
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -18,9 +19,17 @@ from markupsafe import Markup
 from server.dashboard import views
 from server.dashboard.export import export_stream
 from server.dashboard.graph_svg import render_svg
-from server.dashboard.heatmap import Predict, choose_slice, continuous_dims, render_heatmap_svg
+from server.dashboard.heatmap import (
+    Predict,
+    Slice,
+    choose_slice,
+    continuous_dims,
+    render_heatmap_svg,
+)
+from server.dashboard.history_svg import render_history_svg
+from server.dashboard.slices import render_slices_svg
 from server.errors import InvalidInput, NotFound
-from server.services import types
+from server.services import browse, types
 
 HERE = Path(__file__).parent
 STATIC = {
@@ -128,9 +137,11 @@ def index(
         data = views.overview(store, kb, offset=offset, limit=limit)
     except NotFound as exc:
         return _not_found(request, exc)
-    return templates.TemplateResponse(
-        request, "index.html", {**data, "fragments": _fragments("_overview.html", **data)}
-    )
+    history = ""
+    if data["kb"] is not None:
+        history = Markup(render_history_svg(browse.history(store, data["kb"]), "type"))
+    context = {**data, "history_svg": history, "fragments": _fragments("_overview.html", **data)}
+    return templates.TemplateResponse(request, "index.html", context)
 
 
 @router.get("/ui/api/overview")
@@ -161,11 +172,15 @@ def type_page(
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
     heatmap = Markup(_heatmap(request, kb, type_id, data["x_dim"], data["y_dim"], 20))
+    slices = Markup(_slices(request, kb, type_id))
+    history = Markup(_type_history(request, kb, type_id))
     context = {
         **data,
         "graph_svg": graph,
         "heatmap_svg": heatmap,
-        "heatmap_key": _heatmap_key(data),
+        "slices_svg": slices,
+        "history_svg": history,
+        "figure_key": _figure_key(data),
         "fragments": _fragments("_type.html", **data),
     }
     return templates.TemplateResponse(request, "type.html", context)
@@ -177,7 +192,7 @@ def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResp
     data = views.type_status(store, hooks, kb, type_id, table)
     fragments = _fragments("_type.html", **data)
     data["table"] = {k: v for k, v in data["table"].items() if k != "query"}
-    return JSONResponse({**data, "heatmap_key": _heatmap_key(data), "fragments": fragments})
+    return JSONResponse({**data, "figure_key": _figure_key(data), "fragments": fragments})
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
@@ -191,6 +206,22 @@ def heatmap_svg(
     request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
 ) -> Response:
     return Response(_heatmap(request, kb, type_id, x, y, n), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
+def slices_svg(request: Request, kb: str, type_id: str) -> Response:
+    return Response(_slices(request, kb, type_id), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
+def type_history_svg(request: Request, kb: str, type_id: str) -> Response:
+    return Response(_type_history(request, kb, type_id), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/history.svg")
+def kb_history_svg(request: Request, kb: str) -> Response:
+    store, _ = _state(request)
+    return Response(render_history_svg(browse.history(store, kb), "type"), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/export.zip")
@@ -216,19 +247,48 @@ def static(name: str) -> Response:
     )
 
 
-def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
+@dataclass(frozen=True)
+class _Figures:
+    """What the type's pictures are drawn from, read once per request."""
+
+    space: dict[str, Any]
+    relevance: dict[str, float]
+    observed: list[tuple[dict[str, Any], bool]]
+    predict: Predict | None
+    held: Slice
+
+
+def _figures(request: Request, kb: str, type_id: str) -> _Figures:
     store, hooks = _state(request)
     detail = types.get_type(store, kb, type_id)
     state = views.surrogate_state(hooks, kb, type_id) or {}
-    relevance = views.dim_lengthscales(detail.space, state.get("lengthscales"))
-    dx, dy = views.choose_dims(continuous_dims(detail.space), x, y, relevance)
     observed = views.observed_points(store, kb, type_id)
-    predict = predictor_for(request, kb, type_id)
-    held = choose_slice(detail.space, observed)
-    return render_heatmap_svg(detail.space, dx, dy, predict, observed, n=n, held=held)
+    return _Figures(
+        space=detail.space,
+        relevance=views.dim_lengthscales(detail.space, state.get("lengthscales")),
+        observed=observed,
+        predict=predictor_for(request, kb, type_id),
+        held=choose_slice(detail.space, observed),
+    )
 
 
-def _heatmap_key(data: dict[str, Any]) -> str:
-    """Changes whenever the heat map would: new points or a new surrogate version."""
+def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
+    f = _figures(request, kb, type_id)
+    dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
+    return render_heatmap_svg(f.space, dx, dy, f.predict, f.observed, n=n, held=f.held)
+
+
+def _slices(request: Request, kb: str, type_id: str) -> str:
+    f = _figures(request, kb, type_id)
+    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance)
+
+
+def _type_history(request: Request, kb: str, type_id: str) -> str:
+    store, _ = _state(request)
+    return render_history_svg(browse.history(store, kb, type_id), "task")
+
+
+def _figure_key(data: dict[str, Any]) -> str:
+    """Changes whenever the type's pictures would: new points or a new surrogate version."""
     surrogate = data.get("surrogate") or {}
     return f"{data['n_points']}:{surrogate.get('version')}"

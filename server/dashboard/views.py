@@ -102,6 +102,8 @@ def overview(
         },
         "poll": "/ui/api/overview?" + urlencode({**where, "offset": offset, "limit": limit}),
         "workers": workers,
+        # Changes whenever the history would: a point more in the chosen base.
+        "figure_key": str(sum(b.n_points for b in bases if b.name == chosen)),
         "generated_at": datetime.now(UTC).isoformat(),
     }
 

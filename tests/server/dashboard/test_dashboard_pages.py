@@ -220,7 +220,7 @@ def test_type_json_follows_new_points(stocked: dict[str, Any]) -> None:
     }
     _post(client, "default", [make_point(7, graph=make_graph("Plan-motion", ("shelf",)))])
     after = client.get(url).json()
-    assert after["n_points"] == 5 and after["heatmap_key"] != before["heatmap_key"]
+    assert after["n_points"] == 5 and after["figure_key"] != before["figure_key"]
     assert '<dd id="n-points">5</dd>' in after["fragments"]["stats-panel"]
 
 
