@@ -176,12 +176,19 @@ def history(
             )
             rows = [(t, ok, task or NO_TASK) for t, ok, task in session.execute(query)]
         else:
-            query = (
-                select(PointRow.created_at, PointRow.feasible, TypeRow.failure, TypeRow.type_id)
-                .join(TypeRow, TypeRow.id == PointRow.type_pk)
-                .where(PointRow.kb_id == kb_id(session, kb))
+            kb_pk = kb_id(session, kb)
+            names = {
+                pk: f"{failure} {tid[:6]}"
+                for pk, failure, tid in session.execute(
+                    select(TypeRow.id, TypeRow.failure, TypeRow.type_id).where(
+                        TypeRow.kb_id == kb_pk
+                    )
+                )
+            }
+            query = select(PointRow.created_at, PointRow.feasible, PointRow.type_pk).where(
+                PointRow.kb_id == kb_pk
             )
-            rows = [(t, ok, f"{fail} {tid[:6]}") for t, ok, fail, tid in session.execute(query)]
+            rows = [(t, ok, names[pk]) for t, ok, pk in session.execute(query)]
     totals = Counter(name for _, _, name in rows)
     kept = [name for name, _ in totals.most_common(max_series)]
     if len(totals) > max_series:

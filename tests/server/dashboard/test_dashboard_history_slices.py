@@ -88,6 +88,7 @@ def test_slices_put_the_most_relevant_dimension_first_with_its_curve() -> None:
 
 
 def test_history_and_slice_images_are_served(core_client: Any) -> None:
+    core_client.app.state.predict = None  # the core alone: its engine is never started
     type_id = _post(core_client, [make_point(i, task="desk") for i in range(6)])
     for url in (
         f"/ui/kbs/default/types/{type_id}/history.svg",

@@ -305,3 +305,13 @@ def test_a_whole_knowledge_base_exports_as_one_zip(stocked: dict[str, Any]) -> N
     assert len(rows) == 27 and {r["task"] for r in rows} == {"desk", "deskP"}
     assert client.get("/ui/kbs/nope/export.zip").status_code == 404
     assert 'href="/ui/kbs/default/export.zip"' in client.get("/").text
+
+
+def test_choosing_heat_map_axes_keeps_the_table_filters(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    html = client.get(
+        f"/ui/kbs/default/types/{stocked['blocked']}", params={"feasible": "false", "task": "desk"}
+    ).text
+    form = re.search(r'<form class="dims" method="get">(.*?)</form>', html, re.S).group(1)
+    assert '<input type="hidden" name="feasible" value="false">' in form
+    assert '<input type="hidden" name="task" value="desk">' in form
