@@ -88,12 +88,15 @@ def render_history_svg(history: History, what: str) -> str:
                 r = 2.0 + min(3.0, b.n[name] ** 0.5 / 2)
                 out.append(_marker(shape, x_at(k), top2 + _H * (1 - share), r, colour))
         out.append("</g>")
+    start, end = buckets[0].start, buckets[-1].end
+    # Seconds where the whole history is shorter than an hour; the end's date only if it differs.
+    clock = "%H:%M:%S" if (end - start).total_seconds() < 3600 else "%H:%M"
+    end_format = clock if end.date() == start.date() else "%Y-%m-%d " + clock
     out.append(
         f'<text x="{_PAD_L:.0f}" y="{top2 + _H + 14:.0f}" font-size="10" fill="{_MUTED}">'
-        f"{escape(buckets[0].start.strftime('%Y-%m-%d %H:%M'))}</text>"
+        f"{escape(start.strftime('%Y-%m-%d ' + clock))}</text>"
         f'<text x="{_PAD_L + _W:.0f}" y="{top2 + _H + 14:.0f}" font-size="10" '
-        f'text-anchor="end" fill="{_MUTED}">'
-        f"{escape(buckets[-1].end.strftime('%Y-%m-%d %H:%M'))} (UTC)</text>"
+        f'text-anchor="end" fill="{_MUTED}">{escape(end.strftime(end_format))} (UTC)</text>'
     )
     for i, name in enumerate(history.series):
         x = _PAD_L + (i % 3) * (_W / 3)
