@@ -6,7 +6,6 @@ renderers; the pages re-render their changing parts server-side and the script s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -16,20 +15,11 @@ from fastapi.responses import HTMLResponse, JSONResponse, Response, StreamingRes
 from fastapi.templating import Jinja2Templates
 from markupsafe import Markup
 
-from server.dashboard import views
+from server.dashboard import figures, views
 from server.dashboard.export import export_stream
 from server.dashboard.graph_svg import render_svg
-from server.dashboard.heatmap import (
-    Predict,
-    Slice,
-    choose_slice,
-    continuous_dims,
-    render_heatmap_svg,
-)
-from server.dashboard.history_svg import render_history_svg
-from server.dashboard.slices import render_slices_svg
 from server.errors import InvalidInput, NotFound
-from server.services import browse, types
+from server.services import types
 
 HERE = Path(__file__).parent
 STATIC = {
@@ -109,18 +99,6 @@ def _not_found(request: Request, exc: NotFound) -> HTMLResponse:
     )
 
 
-def predictor_for(request: Request, kb: str, type_id: str) -> Predict | None:
-    """The surrogate engine's in-process predict for one type, if the engine is installed."""
-    predict = getattr(request.app.state, "predict", None)
-    if predict is None:
-        return None
-
-    def run(xs: list[dict[str, Any]]) -> list[float]:
-        return list(predict(kb, type_id, xs))
-
-    return run
-
-
 Offset = Annotated[int, Query(ge=0, le=10**9)]
 TypesLimit = Annotated[int, Query(ge=1, le=500)]
 
@@ -139,7 +117,7 @@ def index(
         return _not_found(request, exc)
     history = ""
     if data["kb"] is not None:
-        history = Markup(render_history_svg(browse.history(store, data["kb"]), "type"))
+        history = Markup(figures.kb_history(store, data["kb"]))
     context = {**data, "history_svg": history, "fragments": _fragments("_overview.html", **data)}
     return templates.TemplateResponse(request, "index.html", context)
 
@@ -171,9 +149,10 @@ def type_page(
         return _not_found(request, exc)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
-    heatmap = Markup(_heatmap(request, kb, type_id, data["x_dim"], data["y_dim"], 20))
-    slices = Markup(_slices(request, kb, type_id))
-    history = Markup(_type_history(request, kb, type_id))
+    inputs = _inputs(request, kb, type_id)
+    heatmap = Markup(figures.heatmap(inputs, data["x_dim"], data["y_dim"], 20))
+    slices = Markup(figures.slices(inputs))
+    history = Markup(figures.type_history(store, kb, type_id))
     context = {
         **data,
         "graph_svg": graph,
@@ -205,23 +184,24 @@ def graph_svg(request: Request, kb: str, type_id: str) -> Response:
 def heatmap_svg(
     request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
 ) -> Response:
-    return Response(_heatmap(request, kb, type_id, x, y, n), media_type=SVG)
+    return Response(figures.heatmap(_inputs(request, kb, type_id), x, y, n), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
 def slices_svg(request: Request, kb: str, type_id: str) -> Response:
-    return Response(_slices(request, kb, type_id), media_type=SVG)
+    return Response(figures.slices(_inputs(request, kb, type_id)), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
 def type_history_svg(request: Request, kb: str, type_id: str) -> Response:
-    return Response(_type_history(request, kb, type_id), media_type=SVG)
+    store, _ = _state(request)
+    return Response(figures.type_history(store, kb, type_id), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/history.svg")
 def kb_history_svg(request: Request, kb: str) -> Response:
     store, _ = _state(request)
-    return Response(render_history_svg(browse.history(store, kb), "type"), media_type=SVG)
+    return Response(figures.kb_history(store, kb), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/export.zip")
@@ -247,45 +227,9 @@ def static(name: str) -> Response:
     )
 
 
-@dataclass(frozen=True)
-class _Figures:
-    """What the type's pictures are drawn from, read once per request."""
-
-    space: dict[str, Any]
-    relevance: dict[str, float]
-    observed: list[tuple[dict[str, Any], bool]]
-    predict: Predict | None
-    held: Slice
-
-
-def _figures(request: Request, kb: str, type_id: str) -> _Figures:
+def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
     store, hooks = _state(request)
-    detail = types.get_type(store, kb, type_id)
-    state = views.surrogate_state(hooks, kb, type_id) or {}
-    observed = views.observed_points(store, kb, type_id)
-    return _Figures(
-        space=detail.space,
-        relevance=views.dim_lengthscales(detail.space, state.get("lengthscales")),
-        observed=observed,
-        predict=predictor_for(request, kb, type_id),
-        held=choose_slice(detail.space, observed),
-    )
-
-
-def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
-    f = _figures(request, kb, type_id)
-    dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
-    return render_heatmap_svg(f.space, dx, dy, f.predict, f.observed, n=n, held=f.held)
-
-
-def _slices(request: Request, kb: str, type_id: str) -> str:
-    f = _figures(request, kb, type_id)
-    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance)
-
-
-def _type_history(request: Request, kb: str, type_id: str) -> str:
-    store, _ = _state(request)
-    return render_history_svg(browse.history(store, kb, type_id), "task")
+    return figures.inputs(store, hooks, getattr(request.app.state, "predict", None), kb, type_id)
 
 
 def _figure_key(data: dict[str, Any]) -> str:
