@@ -1,6 +1,6 @@
 """/docs and /redoc load their scripts and styles from the service itself (the fastapi-offline
-package), so that they render on a machine without internet, and stay open when reads need a
-token."""
+package), so that they render on a machine without internet (in a browser with every outside
+request refused: test_dashboard_browser_views.py), and stay open when reads need a token."""
 
 from __future__ import annotations
 
@@ -11,11 +11,9 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from cpkb.embedded import embedded_service
 from server.app import create_app
 from server.security import DOCS_ASSETS
 from server.settings import Settings
-from tests.server.dashboard.browser_support import launch
 
 
 def _asset_urls(html: str) -> list[str]:
@@ -44,36 +42,3 @@ def test_docs_assets_stay_open_when_reads_need_a_token(tmp_path: Path) -> None:
         assert client.get("/v1/kbs").status_code == 401
         assert client.get("/docs").status_code == 200
         assert client.get(f"{DOCS_ASSETS}/swagger-ui.css").status_code == 200
-
-
-@pytest.mark.browser
-@pytest.mark.slow
-def test_docs_and_redoc_render_with_every_outside_request_refused(
-    chromium: str, sqlite_url: str
-) -> None:
-    from playwright.sync_api import expect, sync_playwright
-
-    with embedded_service(sqlite_url) as url, sync_playwright() as playwright:
-        browser = launch(playwright, chromium)
-        try:
-            page = browser.new_page()
-            outside: list[str] = []
-
-            def offline(route: Any) -> None:
-                if route.request.url.startswith(url):
-                    route.continue_()
-                else:
-                    outside.append(route.request.resource_type)
-                    route.abort()
-
-            page.route("**/*", offline)
-            page.goto(f"{url}/docs")
-            expect(page.locator(".swagger-ui .info .title")).to_contain_text("cpkb")
-            expect(page.locator(".opblock").first).to_be_visible()
-            page.goto(f"{url}/redoc")
-            expect(page.locator("redoc h1, [role=main] h1").first).to_contain_text("cpkb")
-        finally:
-            browser.close()
-    # Redoc's bundle links its own "API docs by Redocly" logo from its site: the one picture
-    # missing offline. No script, style or font is asked from outside.
-    assert set(outside) <= {"image"}, outside

@@ -1,6 +1,6 @@
 """The dashboard's tables, graph and themes in headless Chromium against one real `cpkb serve`:
 filters and pages work and follow new points, no panel is clipped, the causal graph's labels do
-not overlap, dark mode, and a hidden tab does not poll."""
+not overlap, dark mode, a hidden tab does not poll, and the API docs render offline."""
 
 from __future__ import annotations
 
@@ -221,3 +221,31 @@ def test_a_hidden_tab_does_not_poll(browser: Any, service: dict[str, Any]) -> No
     with page.expect_request(lambda r: "/ui/api/overview" in r.url, timeout=LIVE_TIMEOUT_MS):
         page.evaluate("window.__show()")
     page.close()
+
+
+def test_docs_and_redoc_render_with_every_outside_request_refused(
+    browser: Any, service: dict[str, Any]
+) -> None:
+    from playwright.sync_api import expect
+
+    url = service["url"]
+    page = browser.new_page()
+    outside: list[str] = []
+
+    def offline(route: Any) -> None:
+        if route.request.url.startswith(url):
+            route.continue_()
+        else:
+            outside.append(route.request.resource_type)
+            route.abort()
+
+    page.route("**/*", offline)
+    page.goto(f"{url}/docs")
+    expect(page.locator(".swagger-ui .info .title")).to_contain_text("cpkb")
+    expect(page.locator(".opblock").first).to_be_visible()
+    page.goto(f"{url}/redoc")
+    expect(page.locator("redoc h1, [role=main] h1").first).to_contain_text("cpkb")
+    page.close()
+    # Redoc's bundle links its own "API docs by Redocly" logo from its site: the one picture
+    # missing offline. No script, style or font is asked from outside.
+    assert set(outside) <= {"image"}, outside
