@@ -303,7 +303,7 @@ def _readable(value: Any, depth: int = 1) -> Any:
     return [_readable(v, depth + 1) for v in value]
 
 
-def _point_out(row: PointRow, type_id: str) -> PointOut:
+def point_out(row: PointRow, type_id: str) -> PointOut:
     source = {name: getattr(row, name) for name in PROVENANCE if getattr(row, name) is not None}
     source.update(_readable(row.extra or {}))
     return PointOut(
@@ -340,7 +340,7 @@ def list_points(
     more = len(points) > limit
     points = points[:limit]
     return PointsPage(
-        points=[_point_out(p, type_id) for p in points],
+        points=[point_out(p, type_id) for p in points],
         next_cursor=str(points[-1].id) if more else None,
     )
 
