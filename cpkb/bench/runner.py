@@ -363,8 +363,6 @@ def run_bench(
         raise ValueError(
             f"concurrent runs do not take predecessors: leave out {', '.join(transfer)}"
         )
-    if concurrent > 1 and kb_service is None:
-        raise ValueError("concurrent runs share a knowledge base: they need a service")
     if concurrent > 1 and pool is not None:
         raise ValueError("concurrent runs wait for each other on this machine: use the local pool")
     if mixed and (concurrent < 2 or len({s.task for s in scenarios}) < 2):
@@ -383,6 +381,8 @@ def run_bench(
     outcome = BenchOutcome(skipped=len(scenarios) - len(pending), remaining=len(pending))
     if not pending:
         return outcome
+    if concurrent > 1 and kb_service is None:
+        raise ValueError("concurrent runs share a knowledge base: they need a service")
     prefix = f"bench-{uuid.uuid4().hex[:8]}"
     context = multiprocessing.get_context("spawn")
     manager = None
