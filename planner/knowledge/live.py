@@ -131,19 +131,22 @@ class PendingExchange:
         self.exchanges = 0
 
     def tick(
-        self, rollout: int, served: list[PendingPoint], type_ids: list[str]
+        self, rollout: int, served: Callable[[], list[PendingPoint]], type_ids: list[str]
     ) -> list[PendingPoint] | None:
         """The other runs' pending points if an exchange has landed since (None: no news), and
-        a new exchange if one is due."""
+        a new exchange if one is due (`served` is asked for this run's only then)."""
         news = self._land()
         due = self._sent_at is None or rollout - self._sent_at >= self.every_rollouts
-        if self._in_flight is None and due and (served or type_ids or self._reported):
+        if self._in_flight is not None or not due:
+            return news
+        reported = served()
+        if reported or type_ids or self._reported:
             self._sent_at = rollout
-            self._reported = bool(served)
+            self._reported = bool(reported)
             self.exchanges += 1
             if self._executor is None:
-                return self._exchange(served, type_ids)
-            self._in_flight = self._executor.submit(self._exchange, served, type_ids)
+                return self._exchange(reported, type_ids)
+            self._in_flight = self._executor.submit(self._exchange, reported, type_ids)
         return news
 
     def close(self) -> None:

@@ -370,9 +370,13 @@ class KnowledgeSession:
         """Report this run's pending suggestions; take in the other runs' that came back."""
         if self.shared is None or self.local is None:
             return
-        served = self.local.served(MAX_PENDING_REPORT)
+        local = self.local
         try:
-            others = self.shared.tick(rollout, served, sorted(self._types)[:MAX_WATCHED_TYPES])
+            others = self.shared.tick(
+                rollout,
+                lambda: local.served(MAX_PENDING_REPORT),
+                sorted(self._types)[:MAX_WATCHED_TYPES],
+            )
         except Exception as exc:  # a knowledge-base outage must not stop the search
             self.stats.event(f"sharing pending suggestions failed: {exc}")
             return
