@@ -187,9 +187,11 @@ class KnowledgeConfig:
     runs must not depend on what others post meanwhile."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
-    live_pending: bool = True
+    live_pending: bool = False
     """With `live_points`, also report this planner's pending suggestions to the service and
-    keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`)."""
+    keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
+    Off: each planner needs a feasible binding of its own, and pushing it off the placements
+    the others are about to try cost pack rollouts (BENCHMARKS.md, issue 23)."""
 
     def __post_init__(self) -> None:
         _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0, live_every_rollouts=1)

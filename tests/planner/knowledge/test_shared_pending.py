@@ -10,8 +10,8 @@ from planner.knowledge import KnowledgeSession
 from planner.knowledge.local import in_request_terms
 from planner.search.analytic import analytic_world
 
-LIVE = KnowledgeConfig(live_points=True, refresh_rollouts=10**6)
-ALONE = KnowledgeConfig(live_points=True, live_pending=False, refresh_rollouts=10**6)
+LIVE = KnowledgeConfig(live_points=True, live_pending=True, refresh_rollouts=10**6)
+ALONE = KnowledgeConfig(live_points=True, refresh_rollouts=10**6)
 BLOCKED = "back"  # desk's first grasp that fails at the start pose
 
 
