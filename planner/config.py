@@ -72,9 +72,16 @@ class SearchConfig:
     next ones keep failing), not only through a categorical choice; off: such a child's outlook
     is the model's view below it, which an unfitted type leaves near its prior."""
 
+    inconclusive_retries: int = 3
+    """Further attempts a categorical choice gets after failing inconclusively (IK restarts or
+    the motion planner found nothing; not a proof of infeasibility), where no continuous decision
+    lies above it: with one attempt, a seed whose first IK of the only grasp that can pick out
+    of clutter is unlucky never solves its task. 0: a failed choice is closed for good."""
+
     def __post_init__(self) -> None:
         _at_least(
             self,
+            inconclusive_retries=0,
             pw_k=0.0,
             ucb_c=0.0,
             hopeless_ratio=0.0,

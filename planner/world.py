@@ -37,6 +37,10 @@ class CheckResult:
     reason: str = ""
     culprits: tuple[Culprit, ...] = ()
     detail: Mapping[str, float] = field(default_factory=dict)
+    conclusive: bool = True
+    """Whether a failure proves the inputs infeasible. A check that searches with randomness (IK
+    restarts, a sampling motion planner) and found nothing is inconclusive: another attempt at
+    the same inputs, with other random draws, may pass."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,13 @@ class TransitionOutcome:
     @property
     def failed(self) -> CheckResult | None:
         return next((c for c in self.checks if not c.ok), None)
+
+    @property
+    def conclusive(self) -> bool:
+        """A failure that another attempt at the same bindings cannot undo (see
+        `CheckResult.conclusive`); a passed layer is conclusive too."""
+        failed = self.failed
+        return failed is None or failed.conclusive
 
 
 Extents = tuple[float, float]
@@ -99,7 +110,9 @@ class BindingWorld(Protocol):
     def initial_state(self) -> object: ...
 
     def transition(
-        self, index: int, bindings: Mapping[str, Value], state: object
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
     ) -> TransitionOutcome:
-        """Run transition layer `index` with every decision bound so far, from `state`."""
+        """Run transition layer `index` with every decision bound so far, from `state`.
+        `attempt` > 0 repeats bindings whose earlier attempts failed inconclusively: the world
+        draws its random numbers afresh for it (attempt 0 draws as it always did)."""
         ...

@@ -72,7 +72,7 @@ class AnalyticWorld:
         return None
 
     def transition(
-        self, index: int, bindings: Mapping[str, Value], state: object
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
     ) -> TransitionOutcome:
         self.calls += 1
         results: list[CheckResult] = []

@@ -95,7 +95,9 @@ class PWUCT:
         self.rng = np.random.default_rng(seed)
         self.decisions = world.skeleton.decisions
         self.n_layers = len(world.skeleton.layers)
-        self.root = DecisionNode(0, self.decisions[0], {}, world.initial_state())
+        self.root = DecisionNode(
+            0, self.decisions[0], {}, world.initial_state(), retries=self._retries(0, None)
+        )
         self.rollout = 0
         self.best_depth = 0.0
         self.sim_s = 0.0
@@ -220,20 +222,37 @@ class PWUCT:
             return None
         return proposal
 
+    def _retries(self, index: int, parent: DecisionNode | None) -> int:
+        """Further attempts at a choice of decision `index` that failed inconclusively: only
+        where every decision from the root to it is categorical (see `planner.search.tree`)."""
+        if self.decisions[index].domain.kind != "categorical":
+            return 0
+        if parent is not None and parent.n_choices is None:
+            return 0
+        if parent is not None and not parent.retries:
+            return 0
+        return self.config.inconclusive_retries
+
     def _expand(self, node: DecisionNode, chosen: Proposal | None = None) -> ChildNode:
-        ctx = self._context(node)
-        started = time.perf_counter()
-        proposal = chosen if chosen is not None else self.sampler.propose(ctx)
-        self.sample_s += time.perf_counter() - started
-        value = proposal
-        if isinstance(proposal, Proposal):
-            value = proposal.value
-            note_proposal(node, proposal.p_feasible, self.config)
-        if node.n_choices is not None and value in ctx.siblings:
-            raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
+        attempt = 0
+        if chosen is None and node.all_tried:
+            retry = node.retry_choice()
+            assert retry is not None, "widens() opens an all-tried node only to retry a choice"
+            value, attempt = retry
+        else:
+            ctx = self._context(node)
+            started = time.perf_counter()
+            proposal = chosen if chosen is not None else self.sampler.propose(ctx)
+            self.sample_s += time.perf_counter() - started
+            value = proposal
+            if isinstance(proposal, Proposal):
+                value = proposal.value
+                note_proposal(node, proposal.p_feasible, self.config)
+            if node.n_choices is not None and value in ctx.siblings:
+                raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}
         started = time.perf_counter()
-        outcome = self.world.transition(node.index, bindings, node.state)
+        outcome = self.world.transition(node.index, bindings, node.state, attempt=attempt)
         self.sim_s += time.perf_counter() - started
         if self.observer is not None:
             self.observer.on_transition(node.index, bindings, outcome, self.rollout + 1)
@@ -241,7 +260,12 @@ class PWUCT:
         add_child(node, child)
         if outcome.ok and node.index + 1 < len(self.decisions):
             child.next = DecisionNode(
-                node.index + 1, self.decisions[node.index + 1], bindings, outcome.state, child
+                node.index + 1,
+                self.decisions[node.index + 1],
+                bindings,
+                outcome.state,
+                child,
+                retries=self._retries(node.index + 1, node),
             )
         else:
             child.success = outcome.ok

@@ -5,6 +5,12 @@ A `DecisionNode` binds one decision variable of the skeleton; each of its childr
 whose transition passed owns the next decision node (or is a success at the last layer); a child
 whose transition failed is a dead end. Children that are dead ends or successes are *closed*:
 UCB never selects them again, and a node whose children are all closed widens at once.
+
+A categorical choice whose transition failed *inconclusively* (IK restarts or a sampling motion
+planner found nothing) is not proven infeasible. Where no continuous decision lies above it
+(`DecisionNode.retries` > 0), a node that has tried every choice may try such a choice again,
+with fresh random draws, instead of closing: a seed's unlucky first IK at the start must not
+doom the run. Below a continuous decision a new value of that decision draws afresh anyway.
 """
 
 from __future__ import annotations
@@ -50,6 +56,7 @@ class DecisionNode:
     reward: float = 0.0
     n_closed: int = 0
     n_hopeless: int = 0  # open children whose next node is hopeless
+    retries: int = 0  # further attempts a choice that failed inconclusively may get
     hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     first_p_feasible: float | None = None  # the knowledge base's view when the search came here
     last_p_feasible: float | None = None  # its view at the latest proposal: the outlook
@@ -80,10 +87,36 @@ class DecisionNode:
         return len(domain.choices) if isinstance(domain, CategoricalDomain) else None
 
     @property
-    def exhausted(self) -> bool:
-        """A categorical decision with every choice tried; a continuous one never is."""
+    def all_tried(self) -> bool:
+        """A categorical decision with every choice tried at least once."""
         limit = self.n_choices
-        return limit is not None and len(self.children) >= limit
+        return limit is not None and len({c.value for c in self.children}) >= limit
+
+    @property
+    def exhausted(self) -> bool:
+        """Every choice tried and none left to retry; a continuous decision never is."""
+        return self.all_tried and self.retry_choice() is None
+
+    def retry_choice(self) -> tuple[Value, int] | None:
+        """The choice to attempt again and its attempt number: among the choices whose every
+        attempt failed inconclusively, with attempts left, the least attempted (the earliest
+        on a tie); None if there is none."""
+        if not self.retries:
+            return None
+        attempts: dict[Value, int] = {}
+        for child in self.children:
+            value = child.value
+            if not isinstance(value, str):
+                return None
+            if child.outcome.ok or child.outcome.conclusive:
+                attempts[value] = self.retries + 1  # passed, or proven infeasible: not retried
+            else:
+                attempts[value] = attempts.get(value, 0) + 1
+        left = [(n, value) for value, n in attempts.items() if n <= self.retries]
+        if not left:
+            return None
+        n, value = min(left, key=lambda pair: pair[0])
+        return value, n
 
     @property
     def closed(self) -> bool:
@@ -137,10 +170,9 @@ def close(child: ChildNode) -> None:
 
 def widens(node: DecisionNode, k: float) -> bool:
     """The PW law: a new child when N > k |C|^2, or when every child is closed or hopeless;
-    never beyond a categorical decision's number of choices."""
+    never beyond a categorical decision's choices and their retries."""
     n_children = len(node.children)
-    limit = node.n_choices
-    if limit is not None and n_children >= limit:
+    if node.exhausted:
         return False
     if node.n_closed + node.n_hopeless >= n_children:
         return True
@@ -180,9 +212,9 @@ def outlook(
 def comparable_outlook(
     node: DecisionNode, prior_weight: float, continuous_failures: bool = False
 ) -> float | None:
-    """The outlook an untried value of `node` is compared with: None unless values are left
-    and every open child is rated."""
-    return None if node.exhausted else outlook(node, prior_weight, continuous_failures)
+    """The outlook an untried value of `node` is compared with: None unless untried values are
+    left and every open child is rated."""
+    return None if node.all_tried else outlook(node, prior_weight, continuous_failures)
 
 
 def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:

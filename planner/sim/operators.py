@@ -66,6 +66,17 @@ class Execution:
     arm: tuple[float, ...]
     held: Grasp | None
     tally: CollisionTally = field(default_factory=CollisionTally)
+    attempt: int = 0
+
+    def draw_seed(self, call: OperatorCall, *inputs: object) -> int:
+        """The seed of a randomised check: a function of the run's seed, the check's inputs and
+        every binding on the tree path, so it gives the same verdict whatever the search did
+        before it, yet a check whose inputs no decision changes (picking a body where it
+        starts) draws afresh on every new branch instead of repeating one unlucky IK solution
+        for the whole run; and of the attempt, so a repeated attempt draws afresh too."""
+        path = tuple(sorted(self.bindings.items()))
+        extra = (self.attempt,) if self.attempt else ()
+        return derived_seed(self.seed, _text(call), *inputs, path, *extra)
 
     def checker(self) -> Checker:
         """Collisions of the arm at q, carrying the held body along."""
@@ -109,8 +120,12 @@ def _text(call: OperatorCall) -> str:
     return f"{call.name}({', '.join(call.args)}){out}"
 
 
-def _fail(call: OperatorCall, ex: Execution, reason: str, **detail: float) -> CheckResult:
-    return CheckResult(call, False, f"{_text(call)}: {reason}", ex.culprits(), detail)
+def _fail(
+    call: OperatorCall, ex: Execution, reason: str, *, conclusive: bool = True, **detail: float
+) -> CheckResult:
+    return CheckResult(
+        call, False, f"{_text(call)}: {reason}", ex.culprits(), detail, conclusive=conclusive
+    )
 
 
 # How far a failed Inv-kin got, as `progress` in [0, 1): its stage (the grasp pose out of reach,
@@ -201,9 +216,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         # A side grasp can be made with the hand either way up.
         candidates = [grasp] if direction == "top" else [grasp, rolled(grasp)]
     check = ex.checker()
-    rng = np.random.default_rng(
-        derived_seed(ex.seed, _text(call), body_pose, candidates[0].direction)
-    )
+    rng = np.random.default_rng(ex.draw_seed(call, body_pose, candidates[0].direction))
     options = dict(restarts=s.ik_restarts, iterations=s.ik_iterations, tolerance=s.ik_tolerance)
     tried: list[IkResult] = []
     for grasp in candidates:
@@ -227,6 +240,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
                 call,
                 ex,
                 f"every IK solution collides with {ex.collision_text()}",
+                conclusive=False,
                 least_depth=min(r.least_depth for r in tried),
                 progress=ik_progress(IK_COLLIDES, tried),
             )
@@ -236,6 +250,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             f"no IK solution for the {grasp.direction} grasp of {body} within {s.ik_tolerance} m "
             f"in {found.restarts} restarts (best error {found.position_error:.3f} m, "
             f"{found.orientation_error:.2f} rad)",
+            conclusive=False,
             position_error=found.position_error,
             orientation_error=found.orientation_error,
             progress=ik_progress(IK_OUT_OF_REACH, tried),
@@ -255,6 +270,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
             call,
             ex,
             f"the approach pose {s.approach} m back {what}",
+            conclusive=False,
             position_error=pre.position_error,
             least_depth=pre.least_depth,
             progress=ik_progress(stage, [pre]),
@@ -283,7 +299,7 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
             f"the retreat from {call.args[0]} collides with {ex.collision_text()}",
             progress=MOTION_RETREAT / MOTION_STAGES,
         )
-    seed = derived_seed(ex.seed, _text(call), a, b)
+    seed = ex.draw_seed(call, a, b)
     middle, checks = rrt_connect(
         a,
         b,
@@ -304,6 +320,7 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
             ex,
             f"RRT-Connect found no path within its budget of {s.motion_max_checks} collision "
             f"checks ({checks} used){hit}",
+            conclusive=False,
             collision_checks=float(checks),
             progress=MOTION_PATH / MOTION_STAGES,
         )
@@ -313,6 +330,7 @@ def plan_motion(call: OperatorCall, ex: Execution) -> CheckResult:
             call,
             ex,
             f"the approach to {call.args[1]} collides with {ex.collision_text()}",
+            conclusive=False,
             progress=MOTION_APPROACH / MOTION_STAGES,
         )
     ex.settle()

@@ -85,7 +85,7 @@ class PyBulletWorld:
         self.scene.set_fingers(state.fingers)
 
     def transition(
-        self, index: int, bindings: Mapping[str, Value], state: object
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
     ) -> TransitionOutcome:
         started = time.perf_counter()
         layers = self.skeleton.transitions
@@ -98,6 +98,7 @@ class PyBulletWorld:
             scene=self.scene,
             settings=self.task.settings,
             seed=self.seed,
+            attempt=attempt,
             bindings=bindings,
             pose_sources=self.pose_sources,
             values=dict(state.values),

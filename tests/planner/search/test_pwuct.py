@@ -29,7 +29,7 @@ class GradedWorld:
         return None
 
     def transition(
-        self, index: int, bindings: Mapping[str, Value], state: object
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
     ) -> TransitionOutcome:
         outcome = self.inner.transition(index, bindings, state)
         failed = outcome.failed

@@ -14,8 +14,10 @@ from planner.sim.operators import (
     APPROACH_OUT_OF_REACH,
     IK_COLLIDES,
     IK_OUT_OF_REACH,
+    Execution,
     ik_progress,
 )
+from planner.skeleton import OperatorCall
 from planner.world import PROGRESS_CAP
 
 ON_OBSTACLE3 = [0.857, 0.929, 0.5]  # see tests/planner/sim/test_world.py
@@ -78,3 +80,24 @@ def test_measuring_draws_nothing_more(desk: PyBulletWorld) -> None:
     )
     assert result.q is None and result.least_depth == float("inf")
     assert rng.random() == expected.random()
+
+
+def test_a_failed_ik_is_inconclusive(desk: PyBulletWorld) -> None:
+    """IK's seeded restarts found no collision-free solution: not a proof, so the search may
+    attempt the same bindings again."""
+    picked = desk.transition(0, {"#dir1": "front"}, desk.initial_state())
+    out = desk.transition(1, {"#dir1": "front", "#pose12": ON_OBSTACLE3}, picked.state)
+    assert out.failed is not None and not out.conclusive
+
+
+def test_a_randomised_check_draws_afresh_per_attempt_and_per_branch() -> None:
+    call = OperatorCall("Inv-kin", ("body", "pose0", "#dir1"))
+
+    def seed(bindings: dict, attempt: int = 0) -> int:
+        ex = Execution(None, None, 5, bindings, {}, {}, (), None, attempt=attempt)  # type: ignore[arg-type]
+        return ex.draw_seed(call, (0.1, 0.2, 0.3), "front")
+
+    first = seed({"#dir1": "front"})
+    assert seed({"#dir1": "front"}) == first  # a function of its inputs: reproducible
+    assert seed({"#dir1": "front"}, attempt=1) != first
+    assert seed({"#dir1": "front", "#pose12": [0.5, 0.5, 0.5]}) != first
