@@ -204,11 +204,16 @@ def _report_together(
 
 def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
     """The bench's runs; a `--concurrent` bench runs the same seeds alone first (those not yet
-    in the alone directory), for its comparison."""
+    in the alone directory), for its comparison. An alone directory that holds them all is
+    only read, whatever knobs it was run with: an A/B of a knob that matters only together
+    (live sharing) compares both arms with the same alone runs."""
     if settings.concurrent <= 1:
         return _execute(settings, run_fn, console)
     solo = replace(settings, concurrent=1, mixed=False, out_dir=alone_dir(settings))
     started = time.monotonic()
+    scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
+    if not ResultStore(solo.out_dir).pending(scenarios):
+        return _execute(settings, run_fn, console)
     first = _execute(solo, run_fn, console)
     if first.remaining or first.interrupted:
         return first

@@ -109,7 +109,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DIR",
         default=None,
         help="with --concurrent N: the results directory of the same seeds run alone (its "
-        "missing runs are run first; share it between benches of several N); default OUT/alone",
+        "missing runs are run first; share it between benches of several N; one that holds "
+        "them all is only read, whatever knobs it was run with); default OUT/alone",
     )
     parser.add_argument("--out", default="bench-out", help="results directory (resumable)")
     parser.add_argument(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -97,3 +98,8 @@ def test_a_mixed_bench_runs_the_seeds_alone_then_together_and_compares(tmp_path:
     assert len(calls) == 8  # each seed alone, then together: nothing run twice
     assert run_command(settings, run) == 0  # a rerun has nothing left to run
     assert len((tmp_path / "calls.jsonl").read_text().splitlines()) == 8
+    # Another arm with other settings compares with the same alone runs, only read.
+    other = replace(settings, out_dir=tmp_path / "other", alone_dir=out / "alone", max_rollouts=60)
+    assert run_command(other, run) == 0
+    assert len((tmp_path / "calls.jsonl").read_text().splitlines()) == 12
+    assert "| all | cp-bo |" in (tmp_path / "other" / "summary_concurrent.md").read_text()
