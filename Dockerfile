@@ -33,6 +33,10 @@ RUN pip install --no-deps .
 FROM ${PYTHON_IMAGE}
 ENV PYTHONUNBUFFERED=1 \
     PATH=/opt/cpkb/bin:$PATH
+# Graphviz's dot lays out the dashboard's causal graphs (without it they get a plainer layout).
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends graphviz \
+    && rm -rf /var/lib/apt/lists/*
 COPY --from=build /opt/cpkb /opt/cpkb
 WORKDIR /app
 COPY deploy ./deploy

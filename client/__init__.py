@@ -1,6 +1,6 @@
 """The light client side of cpkb: wire models (`client.models`), `CpkbClient`, its errors."""
 
-from client.client import CpkbClient
+from client.client import CpkbClient, split_urls
 from client.errors import (
     BadRequest,
     Conflict,
@@ -20,4 +20,5 @@ __all__ = [
     "ServerError",
     "ServiceUnavailable",
     "Unauthorized",
+    "split_urls",
 ]

@@ -7,6 +7,11 @@ restart; a server never reached (a wrong URL) still fails after `retries`. Point
 idempotent by a key on every point (generated when the caller gives none), so a retry after a
 lost answer never stores twice.
 4xx answers raise the matching `client.errors` class carrying the server's detail.
+
+`base_url` may name several replicas of one service (`"http://a:8000,http://b:8000"`, or a
+list): a connection error or a 503 moves the client on to the next one at once, and a pause
+comes only after every replica was tried. The keys make a post re-sent to another replica as
+safe as one re-sent to the same.
 """
 
 from __future__ import annotations
@@ -56,6 +61,16 @@ from client.models import (
 DEFAULT_URL = "http://127.0.0.1:8000"
 
 
+def split_urls(urls: str | Iterable[str]) -> list[str]:
+    """The replica URLs of `"URL1,URL2"` (or of a list), without trailing slashes; ValueError
+    for none."""
+    parts = urls.split(",") if isinstance(urls, str) else list(urls)
+    found = [u.strip().rstrip("/") for u in parts if u.strip()]
+    if not found:
+        raise ValueError(f"no service URL in {urls!r}")
+    return found
+
+
 @cache
 def _tls_context() -> ssl.SSLContext:
     """httpx's default verifying context, built once per process: building it reads the whole
@@ -64,11 +79,12 @@ def _tls_context() -> ssl.SSLContext:
 
 
 class CpkbClient:
-    """Talks to one service at `base_url`; use as a context manager or call `close()`."""
+    """Talks to one service at `base_url` (one URL, or its replicas' URLs: see the module's
+    docstring); use as a context manager or call `close()`."""
 
     def __init__(
         self,
-        base_url: str = DEFAULT_URL,
+        base_url: str | Iterable[str] = DEFAULT_URL,
         *,
         timeout: float = 30.0,
         retries: int = 5,
@@ -79,7 +95,8 @@ class CpkbClient:
         transport: httpx.BaseTransport | None = None,
     ) -> None:
         headers = {"Authorization": f"Bearer {token}"} if token else {}
-        self.base_url = base_url.rstrip("/")
+        self.urls = split_urls(base_url)
+        self._current = 0
         self.retries = retries
         self.backoff = backoff
         self.max_backoff = max_backoff
@@ -87,12 +104,16 @@ class CpkbClient:
         self._reached = False
         self._jitter = random.Random()
         self._http = httpx.Client(
-            base_url=self.base_url,
             timeout=timeout,
             headers=headers,
             transport=transport,
             verify=_tls_context(),
         )
+
+    @property
+    def base_url(self) -> str:
+        """The replica the next call goes to."""
+        return self.urls[self._current]
 
     def close(self) -> None:
         self._http.close()
@@ -120,32 +141,53 @@ class CpkbClient:
         params: Mapping[str, Any] | None = None,
         retry: bool = True,
     ) -> httpx.Response:
-        """One call with retries (when `retry`) on connection errors and 5xx; raises on 4xx."""
-        attempts = 1 + (self.retries if retry else 0)
+        """One call with retries (when `retry`) on connection errors and 5xx; raises on 4xx.
+        With several replicas, each try that meets a connection error or a 503 goes on to the
+        next replica; the pause between tries comes once a round has been through them all."""
+        attempts = (1 + (self.retries if retry else 0)) * len(self.urls)
         reconnect_until = time.monotonic() + (self.reconnect_for if retry else 0.0)
         attempt = 0
         while True:
             attempt += 1
             more = attempt < attempts
+            url = self.base_url + path
             try:
-                response = self._http.request(method, path, json=json, params=params)
+                response = self._http.request(method, url, json=json, params=params)
             except httpx.TransportError as exc:
                 restarting = self._reached and time.monotonic() < reconnect_until
                 if not (more or restarting):
                     raise ServiceUnavailable(
-                        f"cannot reach the knowledge base at {self.base_url}: "
+                        f"cannot reach the knowledge base at {self._where()}: "
                         f"{type(exc).__name__}: {exc}"
                     ) from exc
                 # While waiting out a restart, poll every ~1.6 s rather than backing off further.
-                self._pause(attempt - 1 if more else 3)
+                self._next_replica(attempt, 3 if not more else None)
                 continue
             self._reached = True
             if response.status_code >= 500 and more:
-                self._pause(attempt - 1, response)
+                if response.status_code == 503:
+                    self._next_replica(attempt, None, response)
+                else:
+                    self._pause(self._round(attempt), response)
                 continue
             if response.is_error:
                 raise error_for(response)
             return response
+
+    def _round(self, attempt: int) -> int:
+        return (attempt - 1) // len(self.urls)
+
+    def _next_replica(
+        self, attempt: int, level: int | None, response: httpx.Response | None = None
+    ) -> None:
+        """Move on to the next replica; pause (at backoff `level`, or the round's) only when
+        this try ended a round through all of them."""
+        self._current = (self._current + 1) % len(self.urls)
+        if attempt % len(self.urls) == 0:
+            self._pause(self._round(attempt) if level is None else level, response)
+
+    def _where(self) -> str:
+        return self.urls[0] if len(self.urls) == 1 else "any of " + ", ".join(self.urls)
 
     def _call(self, model: Any, method: str, path: str, **kwargs: Any) -> Any:
         response = self.request(method, path, **kwargs)

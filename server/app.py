@@ -7,6 +7,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import Depends, FastAPI
+from fastapi_offline import FastAPIOffline
 
 from server import __version__
 from server.api import INSTALLERS, ROUTERS
@@ -14,7 +15,7 @@ from server.db import Store
 from server.errors import install_error_handlers
 from server.hooks import ServiceHooks
 from server.schema import prepare_database
-from server.security import bearer_scheme, install_security
+from server.security import DOCS_ASSETS, bearer_scheme, install_security
 from server.settings import Settings
 
 
@@ -39,7 +40,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 stop()
             store.dispose()
 
-    app = FastAPI(
+    # The API docs' scripts and styles come from the installed fastapi-offline package, not a
+    # CDN, so that /docs and /redoc work on a machine without internet.
+    app = FastAPIOffline(
+        static_url=DOCS_ASSETS,
         title="cpkb",
         version=__version__,
         summary="Constraint-primitive knowledge base for task and motion planning",

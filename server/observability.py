@@ -100,6 +100,12 @@ FIT_POINTS = Histogram(
     registry=REGISTRY,
 )
 
+FITS_ADOPTED = Counter(
+    "cpkb_surrogate_fits_adopted",
+    "Fits loaded from the database (another replica's, or an earlier run's) instead of fitted.",
+    registry=REGISTRY,
+)
+
 UNMATCHED_ROUTE = "<unmatched>"
 REPORTED_SUGGEST_KEY = "local_suggest_s"
 # A reported value outside this range, or past this many in one point, is not a timing.
@@ -140,6 +146,11 @@ def record_fit(seconds: float, n_points: int, ok: bool = True) -> None:
     if ok:
         FIT_DURATION.observe(seconds)
         FIT_POINTS.observe(n_points)
+
+
+def record_fit_adopted() -> None:
+    """Called by the surrogate engine when it serves a stored fit instead of fitting."""
+    FITS_ADOPTED.inc()
 
 
 class _StoreCollector(Collector):

@@ -1,4 +1,5 @@
-"""SQLAlchemy 2.0 typed models: knowledge bases, CP types, CP points.
+"""SQLAlchemy 2.0 typed models: knowledge bases, CP types, CP points, and what replicas of the
+service share besides them: each type's latest fit and the suggestions still pending.
 
 A type's points are "the type's table" of the paper: rows of `cp_points` with its `type_pk`,
 read in id order (cursor paging, CSV export). Counters on `cp_types` keep listing cheap.
@@ -14,9 +15,11 @@ from sqlalchemy import (
     BigInteger,
     Boolean,
     DateTime,
+    Float,
     ForeignKey,
     Index,
     Integer,
+    LargeBinary,
     MetaData,
     String,
     UniqueConstraint,
@@ -113,3 +116,44 @@ class PointRow(Base):
     # SHA-256 of the keyed point's content: the same key with another point is a conflict.
     payload_hash: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)
+
+
+class FitRow(Base):
+    """A type's latest fit, so that one replica fits a version and the others load it
+    (`server.surrogates.shared`). `n_fitted` is the version: the fit saw the type's first
+    `n_fitted` points in id order."""
+
+    __tablename__ = "cp_fits"
+
+    type_pk: Mapped[int] = mapped_column(
+        ForeignKey("cp_types.id", ondelete="CASCADE"), primary_key=True
+    )
+    n_fitted: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    # `surrogate.snapshot.dump` of the predictor; the optimiser state for a warm start, as
+    # `torch.save` writes it (None when the fit kind has none).
+    predictor: Mapped[dict[str, Any]] = mapped_column(JSON)
+    warm_state: Mapped[bytes | None] = mapped_column(LargeBinary)
+    fit_seconds: Mapped[float] = mapped_column(Float)
+    iterations: Mapped[int] = mapped_column(Integer)
+    train_accuracy: Mapped[float | None] = mapped_column(Float)
+    lengthscales: Mapped[list[float] | None] = mapped_column(JSON)
+    fitted_by: Mapped[str] = mapped_column(String(128))
+    fitted_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)
+
+
+class PendingRow(Base):
+    """A suggestion served but not yet answered by a point, kept where every replica sees it
+    (`server.surrogates.pending_db`)."""
+
+    __tablename__ = "cp_pending"
+    __table_args__ = (Index("ix_cp_pending_kb_id_expires_at", "kb_id", "expires_at"),)
+
+    id: Mapped[int] = mapped_column(BigId, primary_key=True, autoincrement=True)
+    kb_id: Mapped[int] = mapped_column(ForeignKey("knowledge_bases.id", ondelete="CASCADE"))
+    x: Mapped[dict[str, Any]] = mapped_column(JSON)
+    # [[type_id, [[label, variable], ...]], ...], as `surrogate.pending.PendingEntry.binds`.
+    binds: Mapped[list[Any]] = mapped_column(JSON)
+    # The planner run that reported it (the pending exchange); None: a suggestion served here.
+    owner: Mapped[str | None] = mapped_column(String(128))
+    expires_at: Mapped[datetime] = mapped_column(UtcDateTime)

@@ -38,7 +38,10 @@ READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 # POST routes that only query: they take a body because their question does not fit a URL.
 READ_ONLY_POST_SUFFIXES = ("/types/match", "/predict", "/suggest")
 # Always open, so that liveness probes and the API docs work without a token.
-OPEN_PATHS = frozenset({"/healthz", "/docs", "/redoc", "/openapi.json", "/login", "/logout"})
+DOCS_ASSETS = "/docs/assets"
+OPEN_PATHS = frozenset(
+    {"/healthz", "/docs", "/redoc", "/openapi.json", DOCS_ASSETS, "/login", "/logout"}
+)
 COOKIE = "cpkb_token"
 
 

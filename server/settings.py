@@ -9,6 +9,7 @@ e.g. `postgresql+psycopg://user@host:5432/cpkb`.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -62,3 +63,12 @@ class Settings(BaseSettings):
     # The MPF answer's spread: see surrogate.config.SurrogateConfig.
     surrogate_mpf_margin: float = Field(default=SurrogateConfig.mpf_margin, ge=0.0, le=1.0)
     surrogate_mpf_margin_abs: float = Field(default=SurrogateConfig.mpf_margin_abs, ge=0.0, le=1.0)
+
+    # Replicas on one database (server.surrogates.shared, .pending_db): fits are stored there
+    # and loaded by the other replicas; the pending book lives there (`auto`: on PostgreSQL,
+    # the one backend several replicas share; in memory on SQLite). The name marks the fits
+    # this replica stored (default host:pid).
+    surrogate_share_fits: bool = True
+    surrogate_pending_store: Literal["auto", "memory", "database"] = "auto"
+    surrogate_claim_retry_s: float = Field(default=1.0, gt=0, le=60)
+    replica_name: str | None = Field(default=None, min_length=1, max_length=128)

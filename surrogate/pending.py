@@ -3,6 +3,14 @@
 The optimiser pushes new suggestions away from these, so that planners asking at the same moment
 for the same space do not all get one point. An entry leaves the book when a point arrives for one
 of its constraint types at its values, or when it expires (`ttl_s`).
+
+`Pending` is the interface the suggestion core and the service's engine use; `PendingBook`
+keeps the entries in this process, and the service's replicas on one PostgreSQL share theirs
+through the database (`server.surrogates.pending_db.DatabasePendingBook`).
+
+Planners that suggest in their own processes keep their own books and report what is pending in
+them (`put`, under their run's name as owner); each reads back the other owners' entries
+(`others`), so that planners sharing a knowledge base are pushed apart wherever they suggest.
 """
 
 from __future__ import annotations
@@ -11,6 +19,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -40,6 +49,26 @@ def _entry(x: Mapping[str, Value], binds: Binds, expires: float, owner: str | No
     )
 
 
+class Pending(Protocol):
+    """A book of pending suggestions, keyed by knowledge base (see the module's docstring)."""
+
+    ttl_s: float
+
+    def add(self, kb: str, x: Mapping[str, Value], binds: Binds) -> None: ...
+
+    def for_request(self, kb: str, type_ids: frozenset[str]) -> list[dict[str, Value]]: ...
+
+    def answered(self, kb: str, type_id: str, points: Sequence[Mapping[str, Value]]) -> int: ...
+
+    def count(self, kb: str) -> int: ...
+
+    def put(
+        self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]
+    ) -> None: ...
+
+    def others(self, kb: str, type_ids: frozenset[str], owner: str) -> list[PendingEntry]: ...
+
+
 def _same(a: Value, b: object) -> bool:
     if isinstance(a, str) or isinstance(b, str):
         return a == b
@@ -59,7 +88,7 @@ class PendingBook:
         self._lock = threading.Lock()
         self._by_kb: dict[str, list[PendingEntry]] = {}
 
-    def add(self, kb: str, x: Mapping[str, Value], binds: Binds):
+    def add(self, kb: str, x: Mapping[str, Value], binds: Binds) -> None:
         entry = _entry(x, binds, self.clock() + self.ttl_s)
         with self._lock:
             entries = self._live(kb)
@@ -82,7 +111,7 @@ class PendingBook:
             return 0
         with self._lock:
             entries = self._live(kb)
-            keep = [e for e in entries if not _answers(e, type_id, points)]
+            keep = [e for e in entries if not answers(e, type_id, points)]
             dropped = len(entries) - len(keep)
             self._by_kb[kb] = keep
             return dropped
@@ -117,7 +146,7 @@ class PendingBook:
         return entries
 
 
-def _answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Value]]) -> bool:
+def answers(entry: PendingEntry, type_id: str, points: Sequence[Mapping[str, Value]]) -> bool:
     for bound_type, bind in entry.binds:
         if bound_type != type_id:
             continue

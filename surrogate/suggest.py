@@ -24,7 +24,7 @@ from surrogate.domains import Domain, Value, domain_to_json, space_from_json
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
 from surrogate.models import FeasibilityPredictor
 from surrogate.optimize import OptimizerConfig, maximize_batch, space_filling
-from surrogate.pending import PendingBook
+from surrogate.pending import Pending
 
 
 class InvalidRequest(ValueError):
@@ -113,7 +113,7 @@ class SuggestAnswer:
 def suggest(
     source: ModelSource,
     request: SuggestRequest,
-    book: PendingBook,
+    book: Pending,
     *,
     key: str,
     config: OptimizerConfig,

@@ -20,6 +20,9 @@ COMPOSE = ROOT / "docker-compose.yml"
 _VAR = re.compile(r"\$\{(\w+)(?::?([-?])([^}]*))?\}|\$(\w+)")
 # Values for the variables compose requires (`${X:?...}`) when the file is interpolated here.
 REQUIRED_VALUES = {"CPKB_TOKEN": "example-token", "CPKB_DB_PASSWORD": "example-password"}
+# The service's replicas, and the URLs workers are given (they fail over from one to the other).
+REPLICAS = ("kb", "kb2")
+REPLICA_URLS = "http://kb:8000,http://kb2:8000"
 
 
 def interpolate(text: str) -> str:
@@ -91,7 +94,7 @@ def _planner_invocations(service: dict[str, Any]) -> list[list[str]]:
 
 
 def test_the_lab_services_are_there(services: dict[str, Any]) -> None:
-    assert {"db", "migrate", "kb", "planner", "bench"} <= set(services)
+    assert {"db", "migrate", *REPLICAS, "planner", "bench"} <= set(services)
     assert services["db"]["image"].startswith("postgres:")
     assert "pg_isready" in " ".join(services["db"]["healthcheck"]["test"])
 
@@ -100,12 +103,25 @@ def test_the_service_starts_after_a_healthy_database_and_its_migrations(
     services: dict[str, Any],
 ) -> None:
     assert services["migrate"]["depends_on"]["db"]["condition"] == "service_healthy"
-    kb_deps = services["kb"]["depends_on"]
-    assert kb_deps["db"]["condition"] == "service_healthy"
-    assert kb_deps["migrate"]["condition"] == "service_completed_successfully"
-    assert services["kb"]["command"][:2] == ["cpkb", "serve"]
     assert services["migrate"]["command"] == ["cpkb", "db", "upgrade"]
-    assert "/healthz" in " ".join(services["kb"]["healthcheck"]["test"])
+    for name in REPLICAS:
+        kb_deps = services[name]["depends_on"]
+        assert kb_deps["db"]["condition"] == "service_healthy"
+        assert kb_deps["migrate"]["condition"] == "service_completed_successfully"
+        assert services[name]["command"][:2] == ["cpkb", "serve"]
+        assert "/healthz" in " ".join(services[name]["healthcheck"]["test"])
+
+
+def test_two_replicas_of_one_service(services: dict[str, Any]) -> None:
+    kb, kb2 = (services[name] for name in REPLICAS)
+    assert kb["command"] == kb2["command"]
+    env, env2 = _environment(kb), _environment(kb2)
+    assert env.pop("CPKB_REPLICA_NAME") != env2.pop("CPKB_REPLICA_NAME")
+    assert env == env2
+    host_ports = {p.split(":")[0] for p in kb["ports"] + kb2["ports"]}
+    assert len(host_ports) == 2
+    for name in ("planner", "bench"):
+        assert set(services[name]["depends_on"]) == set(REPLICAS)
 
 
 def test_both_reach_the_compose_database_with_its_credentials(services: dict[str, Any]) -> None:
@@ -114,7 +130,7 @@ def test_both_reach_the_compose_database_with_its_credentials(services: dict[str
         f"postgresql+psycopg://{db_env['POSTGRES_USER']}:{db_env['POSTGRES_PASSWORD']}"
         f"@db:5432/{db_env['POSTGRES_DB']}"
     )
-    for name in ("migrate", "kb"):
+    for name in ("migrate", *REPLICAS):
         assert _environment(services[name])["CPKB_DATABASE_URL"] == expected
 
 
@@ -134,9 +150,9 @@ def test_every_command_exists_in_the_cli(services: dict[str, Any]) -> None:
 
 def test_workers_talk_to_the_service_and_are_scalable(services: dict[str, Any]) -> None:
     for invocation in _planner_invocations(services["planner"]):
-        assert invocation[invocation.index("--kb-url") + 1] == "http://kb:8000"
+        assert invocation[invocation.index("--kb-url") + 1] == REPLICA_URLS
     bench = services["bench"]["command"]
-    assert bench[bench.index("--kb-url") + 1] == "http://kb:8000"
+    assert bench[bench.index("--kb-url") + 1] == REPLICA_URLS
     for name in ("planner", "bench"):
         assert "container_name" not in services[name]
         assert "ports" not in services[name]

@@ -116,8 +116,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--kb-url",
         default=None,
-        help="a running cpkb service to share; default: one embedded service for the whole "
-        "bench on a temporary SQLite file (a fresh knowledge base per scenario either way)",
+        help="a running cpkb service to share (replicas as URL1,URL2); default: one embedded "
+        "service for the whole bench on a temporary SQLite file (a fresh knowledge base per "
+        "scenario either way)",
     )
     parser.add_argument(
         "--ray",

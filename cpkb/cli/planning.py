@@ -37,7 +37,11 @@ def register(subparsers: Any) -> None:
         "base for a later task (what cp-bo-transfer does with 30 rollouts per predecessor; "
         "`cpkb types` shows when the fits have landed)",
     )
-    plan.add_argument("--kb-url", help="knowledge-base service URL (default: an embedded one)")
+    plan.add_argument(
+        "--kb-url",
+        help="knowledge-base service URL, or its replicas' as URL1,URL2 (the client fails over); "
+        "default: an embedded one",
+    )
     plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")
     plan.add_argument("--token", help="access token (default: CPKB_TOKEN)")
     plan.add_argument(
@@ -63,7 +67,9 @@ def register(subparsers: Any) -> None:
     demo.add_argument("--seeds", type=int, default=3, help="seeds per method (default 3)")
     demo.add_argument("--predecessor-rollouts", type=int, default=30, help="deskP budget (30)")
     demo.add_argument("--db", metavar="URL", help="database URL (default: the embedded default)")
-    demo.add_argument("--kb-url", help="use this running service instead of an embedded one")
+    demo.add_argument(
+        "--kb-url", help="use this running service (URL, or replicas as URL1,URL2) instead"
+    )
     demo.add_argument(
         "--analytic",
         action="store_true",

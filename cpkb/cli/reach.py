@@ -26,16 +26,21 @@ class KnowledgeBaseUnavailable(CliError):
 
 
 def checked_url(url: str, option: str = "--kb-url") -> str:
-    """`url` if it is an absolute http(s) URL; else a usage error that says how to write one."""
+    """`url` if it is an absolute http(s) URL, or several joined by commas (replicas of one
+    service: the client fails over between them); else a usage error that says how to write one."""
     import httpx
 
-    try:
-        parsed = httpx.URL(url)
-    except httpx.InvalidURL as exc:
-        raise CliError(f"{option} {url!r} is not a URL: {exc}") from None
-    if parsed.scheme not in ("http", "https") or not parsed.host:
-        hint = f" (did you mean http://{url}?)" if "://" not in url else ""
-        raise CliError(f"{option} {url!r} is not an http:// or https:// URL{hint}")
+    parts = [part.strip() for part in url.split(",")]
+    if not all(parts):
+        raise CliError(f"{option} {url!r} has an empty URL (write URL1,URL2 for replicas)")
+    for part in parts:
+        try:
+            parsed = httpx.URL(part)
+        except httpx.InvalidURL as exc:
+            raise CliError(f"{option} {part!r} is not a URL: {exc}") from None
+        if parsed.scheme not in ("http", "https") or not parsed.host:
+            hint = f" (did you mean http://{part}?)" if "://" not in part else ""
+            raise CliError(f"{option} {part!r} is not an http:// or https:// URL{hint}")
     return url
 
 

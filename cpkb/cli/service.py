@@ -7,6 +7,7 @@ import socket
 from typing import Any
 
 from cpkb.cli import CliError
+from cpkb.cli.reach import checked_url
 
 
 def register(subparsers: Any) -> None:
@@ -83,8 +84,8 @@ def _client_options(parser: argparse.ArgumentParser) -> None:
         "--kb-url",
         "--url",
         dest="url",
-        help="service URL, as `cpkb plan --kb-url` takes it (default: CPKB_URL or "
-        "http://127.0.0.1:8000)",
+        help="service URL, as `cpkb plan --kb-url` takes it; replicas as URL1,URL2 (default: "
+        "CPKB_URL or http://127.0.0.1:8000)",
     )
     parser.add_argument("--token", help="access token (default: CPKB_TOKEN)")
 
@@ -210,6 +211,7 @@ def _client(args: argparse.Namespace) -> Any:
     from client import CpkbClient
 
     settings = _settings(url=args.url)
+    checked_url(settings.url)
     token = args.token or (settings.token.get_secret_value() if settings.token else None)
     return CpkbClient(settings.url, timeout=30.0, retries=2, backoff=0.1, token=token)
 
@@ -223,7 +225,7 @@ def _run(args: argparse.Namespace, call: Any) -> Any:
         except ServiceUnavailable as exc:
             if exc.status is None:
                 raise CliError(
-                    f"cannot reach the knowledge base at {client.base_url} "
+                    f"cannot reach the knowledge base at {', '.join(client.urls)} "
                     "(start it with `cpkb serve`, or pass --kb-url)"
                 ) from exc
             raise CliError(str(exc.detail)) from exc

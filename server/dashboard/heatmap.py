@@ -14,6 +14,7 @@ import functools
 import itertools
 import math
 import statistics
+import textwrap
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
@@ -34,6 +35,7 @@ _PAD_LEFT = 46.0
 _PAD_TOP = 30.0
 _PAD_BOTTOM = 34.0
 _PANEL_GAP = 24.0
+_SMALL_CHAR_W = 6.4  # px per character at the 11 px legend font, a little generous
 
 
 @dataclass(frozen=True)
@@ -196,7 +198,11 @@ def render_heatmap_svg(
     cols = min(len(panels), 4 if dx is not None else 6)
     width = max(cols * panel_w + 10, _LEGEND_W)
     legend_y = ((len(panels) + cols - 1) // cols) * panel_h + 8
-    height = legend_y + 44
+    slice_lines = textwrap.wrap(
+        f"other dimensions held at {held.origin}: {_slice_text(held.values)}",
+        width=max(30, int((width - 20) / _SMALL_CHAR_W)),
+    )
+    height = legend_y + 30 + 14 * len(slice_lines)
     out = [
         f'<svg class="cp-heatmap" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
@@ -238,15 +244,20 @@ def render_heatmap_svg(
                 f'fill="#111827">{len(mine) - n_bad} ✓ · {n_bad} ✗</text>'
             )
         out.append("</g>")
-    out.append(_legend(legend_y, held))
+    out.append(_legend(legend_y, slice_lines))
     out.append("</svg>")
     return "".join(out)
 
 
-def _legend(y: float, held: Slice) -> str:
+def _legend(y: float, slice_lines: list[str]) -> str:
     swatches = "".join(
         f'<rect x="{96 + 12 * k}" y="{y}" width="12" height="10" fill="{_colour(k / 10)}"/>'
         for k in range(11)
+    )
+    # Wrapped to the picture's width: one long line would run out of it.
+    lines = "".join(
+        f'<tspan x="10" dy="{0 if k == 0 else 14}">{escape(line)}</tspan>'
+        for k, line in enumerate(slice_lines)
     )
     return (
         f'<g class="cp-legend" font-size="11" fill="#374151">'
@@ -257,8 +268,7 @@ def _legend(y: float, held: Slice) -> str:
         f'<path d="{_cross(350, y + 5)}" stroke="#ffffff" stroke-width="3.2"/>'
         f'<path d="{_cross(350, y + 5)}" stroke="#111827" stroke-width="1.6"/>'
         f'<text x="{358}" y="{y + 9}">infeasible point</text>'
-        f'<text class="cp-slice" x="10" y="{y + 28}">other dimensions held at '
-        f"{escape(held.origin)}: {escape(_slice_text(held.values))}</text></g>"
+        f'<text class="cp-slice" x="10" y="{y + 28}">{lines}</text></g>'
     )
 
 
@@ -287,8 +297,9 @@ def _axes(ox: float, oy: float, w: float, h: float, dx: Dim, dy: Dim | None) -> 
             f"{_fmt(dy.low)}</text>",
             f'<text x="{ox - 4:.1f}" y="{oy + 9:.1f}" font-size="10" text-anchor="end">'
             f"{_fmt(dy.high)}</text>",
-            f'<text x="{ox - 8:.1f}" y="{oy + h / 2:.1f}" font-size="11" text-anchor="end">'
-            f"{escape(dy.name)}</text>",
+            # Turned upright beside the ticks: a long name written across would leave the panel.
+            f'<text x="{ox - 34:.1f}" y="{oy + h / 2:.1f}" font-size="11" text-anchor="middle" '
+            f'transform="rotate(-90 {ox - 34:.1f} {oy + h / 2:.1f})">{escape(dy.name)}</text>',
         ]
     return "".join(parts)
 

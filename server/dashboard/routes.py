@@ -6,18 +6,19 @@ renderers; the pages re-render their changing parts server-side and the script s
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query, Request
-from fastapi.responses import HTMLResponse, JSONResponse, Response
+from fastapi import APIRouter, Depends, Query, Request
+from fastapi.responses import HTMLResponse, JSONResponse, Response, StreamingResponse
 from fastapi.templating import Jinja2Templates
 from markupsafe import Markup
 
-from server.dashboard import views
+from server.dashboard import figures, views
+from server.dashboard.export import export_stream
 from server.dashboard.graph_svg import render_svg
-from server.dashboard.heatmap import Predict, choose_slice, continuous_dims, render_heatmap_svg
-from server.errors import NotFound
+from server.errors import InvalidInput, NotFound
 from server.services import types
 
 HERE = Path(__file__).parent
@@ -32,6 +33,35 @@ router = APIRouter(include_in_schema=False)
 
 DimName = Annotated[str | None, Query(max_length=200)]
 GridSize = Annotated[int, Query(ge=4, le=40)]
+KbName = Annotated[str | None, Query(max_length=64)]
+PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
+
+
+def table_query(
+    feasible: Annotated[Literal["", "true", "false"], Query(description="'' for both labels")] = "",
+    task: Annotated[str, Query(max_length=128, description="'' for every task")] = "",
+    order: Literal["newest", "oldest"] = "newest",
+    after: PointId = None,
+    before: PointId = None,
+    limit: Annotated[int, Query(ge=1, le=500)] = views.POINTS_PER_PAGE,
+    x: DimName = None,
+    y: DimName = None,
+) -> views.TableQuery:
+    """The points table's query string: unknown values are a 422, never silently ignored."""
+    if after is not None and before is not None:
+        raise InvalidInput("give after= or before=, not both")
+    return views.TableQuery(
+        feasible=None if feasible == "" else feasible == "true",
+        task=task or None,
+        newest_first=order == "newest",
+        after=after,
+        before=before,
+        limit=limit,
+        axes=(x, y),
+    )
+
+
+Table = Annotated[views.TableQuery, Depends(table_query)]
 
 
 def _fmt_value(value: Any) -> str:
@@ -69,34 +99,38 @@ def _not_found(request: Request, exc: NotFound) -> HTMLResponse:
     )
 
 
-def predictor_for(request: Request, kb: str, type_id: str) -> Predict | None:
-    """The surrogate engine's in-process predict for one type, if the engine is installed."""
-    predict = getattr(request.app.state, "predict", None)
-    if predict is None:
-        return None
-
-    def run(xs: list[dict[str, Any]]) -> list[float]:
-        return list(predict(kb, type_id, xs))
-
-    return run
+Offset = Annotated[int, Query(ge=0, le=10**9)]
+TypesLimit = Annotated[int, Query(ge=1, le=500)]
 
 
 @router.get("/", response_class=HTMLResponse)
-def index(request: Request, kb: Annotated[str | None, Query(max_length=64)] = None) -> Response:
+def index(
+    request: Request,
+    kb: KbName = None,
+    offset: Offset = 0,
+    limit: TypesLimit = views.TYPES_PER_PAGE,
+) -> Response:
     store, _ = _state(request)
     try:
-        data = views.overview(store, kb)
+        data = views.overview(store, kb, offset=offset, limit=limit)
     except NotFound as exc:
         return _not_found(request, exc)
-    return templates.TemplateResponse(
-        request, "index.html", {**data, "fragments": _fragments("_overview.html", **data)}
-    )
+    history = ""
+    if data["kb"] is not None:
+        history = Markup(figures.kb_history(store, data["kb"]))
+    context = {**data, "history_svg": history, "fragments": _fragments("_overview.html", **data)}
+    return templates.TemplateResponse(request, "index.html", context)
 
 
 @router.get("/ui/api/overview")
-def overview_json(kb: Annotated[str | None, Query(max_length=64)] = None, *, request: Request):
+def overview_json(
+    request: Request,
+    kb: KbName = None,
+    offset: Offset = 0,
+    limit: TypesLimit = views.TYPES_PER_PAGE,
+) -> JSONResponse:
     store, _ = _state(request)
-    data = views.overview(store, kb)
+    data = views.overview(store, kb, offset=offset, limit=limit)
     return JSONResponse({**data, "fragments": _fragments("_overview.html", **data)})
 
 
@@ -105,40 +139,39 @@ def type_page(
     request: Request,
     kb: str,
     type_id: str,
-    x: DimName = None,
-    y: DimName = None,
-    limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    cursor: Annotated[str | None, Query(max_length=32)] = None,
+    table: Table,
 ) -> Response:
     store, hooks = _state(request)
+    x, y = table.axes
     try:
-        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, limit=limit, cursor=cursor)
+        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
     except NotFound as exc:
         return _not_found(request, exc)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
-    heatmap = Markup(_heatmap(request, kb, type_id, data["x_dim"], data["y_dim"], 20))
+    inputs = _inputs(request, kb, type_id)
+    heatmap = Markup(figures.heatmap(inputs, data["x_dim"], data["y_dim"], 20))
+    slices = Markup(figures.slices(inputs))
+    history = Markup(figures.type_history(store, kb, type_id))
     context = {
         **data,
         "graph_svg": graph,
         "heatmap_svg": heatmap,
-        "heatmap_key": _heatmap_key(data),
+        "slices_svg": slices,
+        "history_svg": history,
+        "figure_key": _figure_key(data),
         "fragments": _fragments("_type.html", **data),
     }
     return templates.TemplateResponse(request, "type.html", context)
 
 
 @router.get("/ui/api/kbs/{kb}/types/{type_id}")
-def type_json(request: Request, kb: str, type_id: str) -> JSONResponse:
+def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResponse:
     store, hooks = _state(request)
-    data = views.type_status(store, hooks, kb, type_id)
-    return JSONResponse(
-        {
-            **data,
-            "heatmap_key": _heatmap_key(data),
-            "fragments": _fragments("_type.html", **data),
-        }
-    )
+    data = views.type_status(store, hooks, kb, type_id, table)
+    fragments = _fragments("_type.html", **data)
+    data["table"] = {k: v for k, v in data["table"].items() if k != "query"}
+    return JSONResponse({**data, "figure_key": _figure_key(data), "fragments": fragments})
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
@@ -151,7 +184,36 @@ def graph_svg(request: Request, kb: str, type_id: str) -> Response:
 def heatmap_svg(
     request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
 ) -> Response:
-    return Response(_heatmap(request, kb, type_id, x, y, n), media_type=SVG)
+    return Response(figures.heatmap(_inputs(request, kb, type_id), x, y, n), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
+def slices_svg(request: Request, kb: str, type_id: str) -> Response:
+    return Response(figures.slices(_inputs(request, kb, type_id)), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
+def type_history_svg(request: Request, kb: str, type_id: str) -> Response:
+    store, _ = _state(request)
+    return Response(figures.type_history(store, kb, type_id), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/history.svg")
+def kb_history_svg(request: Request, kb: str) -> Response:
+    store, _ = _state(request)
+    return Response(figures.kb_history(store, kb), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/export.zip")
+def export_zip(request: Request, kb: str) -> Response:
+    """The whole knowledge base: types.json and one CSV per type (see server.dashboard.export)."""
+    store, hooks = _state(request)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    return StreamingResponse(
+        export_stream(store, hooks, kb),
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="cpkb-{kb}-{stamp}.zip"'},
+    )
 
 
 @router.get("/ui/static/{name}")
@@ -165,19 +227,12 @@ def static(name: str) -> Response:
     )
 
 
-def _heatmap(request: Request, kb: str, type_id: str, x: str | None, y: str | None, n: int) -> str:
+def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
     store, hooks = _state(request)
-    detail = types.get_type(store, kb, type_id)
-    state = views.surrogate_state(hooks, kb, type_id) or {}
-    relevance = views.dim_lengthscales(detail.space, state.get("lengthscales"))
-    dx, dy = views.choose_dims(continuous_dims(detail.space), x, y, relevance)
-    observed = views.observed_points(store, kb, type_id)
-    predict = predictor_for(request, kb, type_id)
-    held = choose_slice(detail.space, observed)
-    return render_heatmap_svg(detail.space, dx, dy, predict, observed, n=n, held=held)
+    return figures.inputs(store, hooks, getattr(request.app.state, "predict", None), kb, type_id)
 
 
-def _heatmap_key(data: dict[str, Any]) -> str:
-    """Changes whenever the heat map would: new points or a new surrogate version."""
+def _figure_key(data: dict[str, Any]) -> str:
+    """Changes whenever the type's pictures would: new points or a new surrogate version."""
     surrogate = data.get("surrogate") or {}
     return f"{data['n_points']}:{surrogate.get('version')}"

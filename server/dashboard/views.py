@@ -8,15 +8,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Any
+from urllib.parse import quote, urlencode
 
-from client.models import PointsPage, SurrogateState, TypeDetail, TypeSummary
+from client.models import SurrogateState, TypeDetail, TypeSummary
 from server.dashboard.heatmap import Dim, continuous_dims
 from server.db import Store
 from server.hooks import ServiceHooks
-from server.services import activity, kbs, points, types
+from server.services import activity, browse, kbs, types
 from server.services.types import load_training_points
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
@@ -24,6 +25,8 @@ from surrogate.encoding import SpaceEncoder
 # (kb, type_id, decision values) -> P(feasible) per value, or None when no surrogate answers.
 Predictor = Callable[[str, str, list[dict[str, Any]]], list[float] | None]
 MAX_OVERLAY_POINTS = 2000
+TYPES_PER_PAGE = 50
+POINTS_PER_PAGE = 50
 
 
 def ago(moment: datetime | None, now: datetime | None = None) -> str:
@@ -54,30 +57,53 @@ def pick_kb(store: Store, requested: str | None) -> tuple[list[Any], str | None]
     return bases, names[0] if names else None
 
 
-def overview(store: Store, kb: str | None) -> dict[str, Any]:
-    """The knowledge bases, the chosen one's types with provenance, and the recent workers."""
+def overview(
+    store: Store, kb: str | None, *, offset: int = 0, limit: int = TYPES_PER_PAGE
+) -> dict[str, Any]:
+    """The knowledge bases, a page of the chosen one's types with provenance (a fixed number
+    of queries however many types there are), and the recent workers."""
     bases, chosen = pick_kb(store, kb)
     type_rows = []
+    total = 0
     if chosen is not None:
-        for summary in types.list_types(store, chosen):
-            prov = activity.type_provenance(store, chosen, summary.type_id, limit=3)
+        page = browse.types_page(store, chosen, offset=offset, limit=limit)
+        total = page.total
+        for row in page.rows:
             type_rows.append(
                 {
-                    **summary.model_dump(mode="json"),
-                    "feasible_ratio": feasible_ratio(summary),
-                    "updated_ago": ago(summary.updated_at),
-                    "provenance": asdict(prov),
+                    **row.summary.model_dump(mode="json"),
+                    "feasible_ratio": feasible_ratio(row.summary),
+                    "updated_ago": ago(row.summary.updated_at),
+                    "tasks": [{"name": name, "n_points": n} for name, n in row.tasks],
+                    "n_tasks": row.n_tasks,
+                    "n_runs": row.n_runs,
                 }
             )
     workers = [
         {**asdict(w), "last_seen": w.last_seen.isoformat(), "last_seen_ago": ago(w.last_seen)}
         for w in activity.recent_workers(store, limit=20)
     ]
+
+    where = {"kb": chosen} if chosen else {}
+
+    def href(at: int) -> str:
+        return "/?" + urlencode({**where, "offset": at, "limit": limit})
+
     return {
         "kb": chosen,
         "kbs": [b.model_dump(mode="json") for b in bases],
         "types": type_rows,
+        "types_total": total,
+        "types_pager": {
+            "first": offset + 1 if type_rows else 0,
+            "last": offset + len(type_rows),
+            "prev_href": href(max(0, offset - limit)) if offset > 0 else None,
+            "next_href": href(offset + limit) if offset + limit < total else None,
+        },
+        "poll": "/ui/api/overview?" + urlencode({**where, "offset": offset, "limit": limit}),
         "workers": workers,
+        # Changes whenever the history would: a point more in the chosen base.
+        "figure_key": str(sum(b.n_points for b in bases if b.name == chosen)),
         "generated_at": datetime.now(UTC).isoformat(),
     }
 
@@ -87,9 +113,69 @@ def surrogate_state(hooks: ServiceHooks, kb: str, type_id: str) -> dict[str, Any
     return None if state is None else state.model_dump(mode="json")
 
 
-def type_status(store: Store, hooks: ServiceHooks, kb: str, type_id: str) -> dict[str, Any]:
-    """The parts of a type page that change while points arrive: counts, provenance, surrogate."""
+@dataclass(frozen=True)
+class TableQuery:
+    """What the points table shows: filters, order and the page (`after` / `before` a point id,
+    in display order), and the heat map's axes to keep in its links."""
+
+    feasible: bool | None = None
+    task: str | None = None
+    newest_first: bool = True
+    after: int | None = None
+    before: int | None = None
+    limit: int = POINTS_PER_PAGE
+    axes: tuple[str | None, str | None] = (None, None)
+
+    def params(self, **page: int) -> dict[str, str | int]:
+        """The query string of this view with another page (`after=` or `before=`)."""
+        out: dict[str, str | int] = {}
+        if self.feasible is not None:
+            out["feasible"] = "true" if self.feasible else "false"
+        if self.task is not None:
+            out["task"] = self.task
+        out["order"] = "newest" if self.newest_first else "oldest"
+        out["limit"] = self.limit
+        for name, value in zip(("x", "y"), self.axes, strict=True):
+            if value is not None:
+                out[name] = value
+        return {**out, **page}
+
+    def href(self, **page: int) -> str:
+        return "?" + urlencode(self.params(**page))
+
+
+def points_table(store: Store, kb: str, type_id: str, query: TableQuery) -> dict[str, Any]:
+    view = browse.browse_points(
+        store,
+        kb,
+        type_id,
+        limit=query.limit,
+        after=query.after,
+        before=query.before,
+        newest_first=query.newest_first,
+        where=browse.PointFilter(query.feasible, query.task),
+    )
+    paged = query.after is not None or query.before is not None
+    return {
+        "points": [p.model_dump(mode="json") for p in view.points],
+        "n_matching": view.n_matching,
+        "next_href": query.href(after=view.after) if view.after is not None else None,
+        "prev_href": query.href(before=view.before) if view.before is not None else None,
+        "first_href": query.href() if paged else None,
+        "query": query,
+    }
+
+
+def type_status(
+    store: Store, hooks: ServiceHooks, kb: str, type_id: str, table: TableQuery | None = None
+) -> dict[str, Any]:
+    """The parts of a type page that change while points arrive: counts, provenance, surrogate,
+    the points table as filtered and paged."""
     detail: TypeDetail = types.get_type(store, kb, type_id)
+    table = table or TableQuery()
+    shown = points_table(store, kb, type_id, table)
+    # A page at the start polls as the first page, so that new points join it.
+    page = _page(table) if shown["prev_href"] else {}
     return {
         "kb": kb,
         "type_id": type_id,
@@ -100,7 +186,16 @@ def type_status(store: Store, hooks: ServiceHooks, kb: str, type_id: str) -> dic
         "updated_ago": ago(detail.updated_at),
         "provenance": asdict(activity.type_provenance(store, kb, type_id)),
         "surrogate": surrogate_state(hooks, kb, type_id),
+        "space": {label: dom.model_dump(mode="json") for label, dom in detail.space.items()},
+        "table": shown,
+        "poll": f"/ui/api/kbs/{quote(kb, safe='')}/types/{type_id}" + table.href(**page),
     }
+
+
+def _page(table: TableQuery) -> dict[str, int]:
+    if table.after is not None:
+        return {"after": table.after}
+    return {"before": table.before} if table.before is not None else {}
 
 
 def dim_lengthscales(space: dict[str, Any], lengthscales: list[float] | None) -> dict[str, float]:
@@ -141,27 +236,20 @@ def type_page(
     *,
     x: str | None,
     y: str | None,
-    limit: int,
-    cursor: str | None,
+    table: TableQuery,
 ) -> dict[str, Any]:
     detail = types.get_type(store, kb, type_id)
-    page: PointsPage = points.list_points(store, kb, type_id, limit=limit, cursor=cursor)
     dims = continuous_dims(detail.space)
-    status = type_status(store, hooks, kb, type_id)
+    status = type_status(store, hooks, kb, type_id, table)
     relevance = dim_lengthscales(detail.space, (status["surrogate"] or {}).get("lengthscales"))
     dx, dy = choose_dims(dims, x, y, relevance)
     return {
         **status,
         "relevance": sorted(relevance.items(), key=lambda kv: kv[1]),
         "detail": detail,
-        "space": {label: dom.model_dump(mode="json") for label, dom in detail.space.items()},
         "dims": [d.name for d in dims],
         "x_dim": dx.name if dx else None,
         "y_dim": dy.name if dy else None,
-        "points": [p.model_dump(mode="json") for p in page.points],
-        "next_cursor": page.next_cursor,
-        "cursor": cursor,
-        "limit": limit,
     }
 
 

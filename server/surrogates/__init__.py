@@ -17,6 +17,9 @@ def install(app: FastAPI) -> None:
     app.state.surrogates = None
     if not settings.surrogate_enabled:
         return
+    pending_store = settings.surrogate_pending_store
+    if pending_store == "auto":
+        pending_store = "database" if app.state.store.dialect == "postgresql" else "memory"
     config = EngineConfig(
         fit_in_child_process=settings.surrogate_fit_process,
         max_inducing=settings.surrogate_max_inducing,
@@ -30,6 +33,10 @@ def install(app: FastAPI) -> None:
             margin=settings.surrogate_mpf_margin,
             margin_abs=settings.surrogate_mpf_margin_abs,
         ),
+        share_fits=settings.surrogate_share_fits,
+        pending_in_database=pending_store == "database",
+        claim_retry_s=settings.surrogate_claim_retry_s,
+        **({"replica": settings.replica_name} if settings.replica_name else {}),
     )
     engine = SurrogateEngine(app.state.store, config)
     hooks = app.state.hooks

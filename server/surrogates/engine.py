@@ -6,14 +6,22 @@ hook) or a periodic freshness check put the type on a queue; one coordinator thr
 off it one at a time, loads the new points, and fits with a warm start from the previous fit in
 a single fit worker (a child process by default). A request always answers with the latest
 finished fit (or the stated prior of `surrogate.models.PriorPredictor` until there is one).
+
+Replicas of the service on one database share their fits (`server.surrogates.shared`): before
+fitting, the coordinator loads a stored fit that covers the type's points, and fits only under
+the type's claim; a type first seen here starts from the stored fit. The pending book is the
+database's (`server.surrogates.pending_db`) when `pending_in_database`.
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import socket
 import threading
 import time
 from collections import OrderedDict
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -23,13 +31,15 @@ from client.models import SurrogateState
 from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
+from server.surrogates.pending_db import DatabasePendingBook
+from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit
 from surrogate.optimize import OptimizerConfig
-from surrogate.pending import PendingBook
+from surrogate.pending import Pending, PendingBook
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
 from surrogate.suggest import TypeModel
 
@@ -46,6 +56,12 @@ class EngineConfig:
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
     optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
+    # Replicas on one database: fits stored and loaded there, the pending book kept there.
+    share_fits: bool = True
+    pending_in_database: bool = False
+    # How long a replica waits before looking again at a type another replica is fitting.
+    claim_retry_s: float = 1.0
+    replica: str = field(default_factory=lambda: f"{socket.gethostname()}:{os.getpid()}")
 
 
 @dataclass
@@ -82,7 +98,11 @@ class SurrogateEngine:
     def __init__(self, store: Store, config: EngineConfig | None = None) -> None:
         self.store = store
         self.config = config or EngineConfig()
-        self.pending = PendingBook(self.config.pending_ttl_s)
+        ttl = self.config.pending_ttl_s
+        self.pending: Pending = (
+            DatabasePendingBook(store, ttl) if self.config.pending_in_database else PendingBook(ttl)
+        )
+        self.shared = FitShare(store, self.config.replica) if self.config.share_fits else None
         self._entries: dict[Key, _Entry] = {}
         self._queue: OrderedDict[Key, None] = OrderedDict()
         self._busy: Key | None = None
@@ -91,6 +111,7 @@ class SurrogateEngine:
         self._thread: threading.Thread | None = None
         self._fitter: Fitter | None = None
         self.fits = 0
+        self.adopted = 0  # fits of another replica (or an earlier run) loaded, not fitted
 
     # --- lifecycle ---------------------------------------------------------------------
     def start(self) -> None:
@@ -306,10 +327,12 @@ class SurrogateEngine:
         entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y), points.origin)
         entry.checked_at = time.monotonic()
         with self._cond:
-            entry = self._entries.setdefault(key, entry)
-        if needs_model(entry.y):
+            stored = self._entries.setdefault(key, entry)
+        if stored is entry and needs_model(entry.y):
+            self._adopt_stored(key, entry)
+        if needs_model(stored.y) and stored.n_fitted < stored.n_points:
             self._enqueue(key)
-        return entry
+        return stored
 
     def _run(self) -> None:
         while True:
@@ -351,15 +374,74 @@ class SurrogateEngine:
                 entry.predictor = prior(entry.z, entry.y)
                 entry.n_fitted, entry.status = entry.n_points, "prior"
             return
-        z, y, warm, n = entry.z, entry.y, entry.fit, entry.n_points
-        fit = self._fit(z, y, warm)
+        if self._adopt_stored(key, entry):
+            return
+        with self._claim(entry) as mine:
+            if not mine:
+                self._retry_later(key)
+                return
+            if self._adopt_stored(key, entry):  # it landed between the look and the claim
+                return
+            z, y, warm, n = entry.z, entry.y, entry.fit, entry.n_points
+            fit = self._fit(z, y, warm)
+            if self.shared is not None:
+                self.shared.save(entry.origin[0], fit)
         self.fits += 1
         _record_fit(fit.fit_seconds, n)
-        seen = seen_choices(entry.encoder, z[:n])
+        log.info(
+            "fitted %s/%s version %d in %.2f s",
+            *key,
+            n,
+            fit.fit_seconds,
+            extra={"kb": key[0], "type_id": key[1], "version": n, "fit_kind": fit.kind},
+        )
+        self._install(entry, fit, n)
+
+    def _install(self, entry: _Entry, fit: Fit, n: int) -> None:
+        """Serve `fit` as the type's model from here on; `n` is its version."""
+        seen = seen_choices(entry.encoder, entry.z[:n])
         with self._cond:
             entry.fit, entry.predictor, entry.seen = fit, fit.predictor, seen
             entry.n_fitted, entry.status, entry.error = n, "ready", None
             entry.fitted_at = datetime.now(UTC)
+
+    def _claim(self, entry: _Entry) -> AbstractContextManager[bool]:
+        return self.shared.claim(entry.origin[0]) if self.shared is not None else nullcontext(True)
+
+    def _adopt_stored(self, key: Key, entry: _Entry) -> bool:
+        """Serve the stored fit if it is newer than the entry's; True if it covers every point
+        the entry holds (nothing is left to fit)."""
+        if self.shared is None:
+            return False
+        stored = self.shared.newer(entry.origin[0], entry.n_fitted)
+        if stored is None:
+            return entry.n_fitted >= entry.n_points
+        # A fit of more points than this replica has loaded serves as a fit of those it holds;
+        # it is loaded again once the rest are here.
+        self._install(entry, stored.fit, min(stored.fit.n_fitted, entry.n_points))
+        with self._cond:
+            entry.fitted_at = stored.fitted_at
+        self.adopted += 1
+        _record_adopted()
+        log.info(
+            "loaded %s/%s version %d fitted by %s",
+            *key,
+            stored.fit.n_fitted,
+            stored.fitted_by,
+            extra={"kb": key[0], "type_id": key[1], "version": stored.fit.n_fitted},
+        )
+        return stored.fit.n_fitted >= entry.n_points
+
+    def _retry_later(self, key: Key) -> None:
+        """Another replica is fitting the type: look again once it may have saved its fit."""
+
+        def again() -> None:
+            if not self._stopping:
+                self._enqueue(key)
+
+        timer = threading.Timer(self.config.claim_retry_s, again)
+        timer.daemon = True
+        timer.start()
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
         args = (z, y, 0, warm, self.config.max_inducing)
@@ -397,6 +479,14 @@ class SurrogateEngine:
                 entry.status, entry.error = "error", f"{type(exc).__name__}: {exc}"
                 entry.n_fitted = entry.n_points
         _record_fit(0.0, 0, ok=False)
+
+
+def _record_adopted() -> None:
+    try:
+        from server.observability import record_fit_adopted
+    except ImportError:
+        return
+    record_fit_adopted()
 
 
 def _record_fit(seconds: float, n_points: int, ok: bool = True) -> None:

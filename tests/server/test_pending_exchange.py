@@ -3,9 +3,11 @@ pending, with each other and with the service's own suggest."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
-from suggest_support import BIND, post_points, suggest_body
+import pytest
+from suggest_support import BIND, make_client, post_points, suggest_body
 
 PENDING = "/v1/kbs/default/pending"
 
@@ -20,7 +22,15 @@ def exchange(client: Any, run: str, points: list[dict[str, Any]], type_ids: list
     return response.json()["pending"]
 
 
-def test_each_run_gets_the_others_pending_points_and_its_report_replaces_the_last(client):
+@pytest.fixture(params=["memory", "database"])
+def books(request: pytest.FixtureRequest, sqlite_url: str) -> Iterator[Any]:
+    """A service whose pending book is in its process, or in its database (replicas)."""
+    with make_client(sqlite_url, surrogate_pending_store=request.param) as c:
+        yield c
+
+
+def test_each_run_gets_the_others_pending_points_and_its_report_replaces_the_last(books):
+    client = books
     with client:
         reach, clear = post_points(client, 4)
         a1 = served({"d": "top", "p": [0.9, 0.1, 0.0]}, [reach])

@@ -1,6 +1,7 @@
 // Keeps a dashboard page current without a reload: polls the page's JSON endpoint
-// (data-poll on <main>), swaps in the server-rendered fragments it carries, and redraws the
-// heat map when new points or a new surrogate version arrive.
+// (data-poll on <main>, the page's own filters and page included), swaps in the
+// server-rendered fragments it carries, and redraws the pictures when new points or a new
+// surrogate version arrive. A hidden tab does not poll; it catches up when shown again.
 (function () {
   "use strict";
   const main = document.querySelector("main[data-poll]");
@@ -9,9 +10,11 @@
     if (live) live.textContent = "";
     return;
   }
-  const every = 3000;
-  const heatmapEvery = 10000;
-  let heatmapAt = 0;
+  const every = 5000;
+  let timer = null;
+  let running = false;
+  const figureEvery = 10000;
+  let figuresAt = 0;
 
   function setLive(text, ok) {
     if (!live) return;
@@ -19,18 +22,32 @@
     live.classList.toggle("stale", !ok);
   }
 
-  async function refreshHeatmap(key) {
-    const box = document.getElementById("heatmap");
-    if (!box || key === undefined || box.dataset.key === key) return;
-    if (Date.now() - heatmapAt < heatmapEvery) return;
-    heatmapAt = Date.now();
-    const response = await fetch(box.dataset.src, { cache: "no-store" });
-    if (!response.ok) return;
-    box.innerHTML = await response.text();
-    box.dataset.key = key;
+  // The pictures (heat map, slices, history) are redrawn when their key changes (new points
+  // or a new surrogate version), at most once every figureEvery ms.
+  async function refreshFigures(key) {
+    if (key === undefined || Date.now() - figuresAt < figureEvery) return;
+    const stale = Array.from(document.querySelectorAll(".live-figure")).filter(
+      (box) => box.dataset.key !== key
+    );
+    if (stale.length === 0) return;
+    figuresAt = Date.now();
+    for (const box of stale) {
+      const response = await fetch(box.dataset.src, { cache: "no-store" });
+      if (!response.ok) continue;
+      box.innerHTML = await response.text();
+      box.dataset.key = key;
+    }
+  }
+
+  function schedule(delay) {
+    window.clearTimeout(timer);
+    timer = null;
+    if (document.visibilityState === "visible") timer = window.setTimeout(tick, delay);
   }
 
   async function tick() {
+    if (running) return;
+    running = true;
     try {
       const response = await fetch(main.dataset.poll, {
         cache: "no-store",
@@ -42,15 +59,24 @@
         const element = document.getElementById(id);
         if (element) element.innerHTML = html;
       }
-      await refreshHeatmap(data.heatmap_key);
+      await refreshFigures(data.figure_key);
       setLive("live · " + new Date().toLocaleTimeString(), true);
     } catch (error) {
       setLive("cannot reach the service (" + error.message + "), retrying", false);
     } finally {
-      window.setTimeout(tick, every);
+      running = false;
+      schedule(every);
     }
   }
 
+  document.addEventListener("visibilitychange", function () {
+    if (document.visibilityState === "visible") {
+      schedule(0);
+    } else {
+      schedule(every);
+      setLive("paused while hidden", true);
+    }
+  });
   setLive("live", true);
-  window.setTimeout(tick, every);
+  schedule(every);
 })();

@@ -1,13 +1,9 @@
-"""The dashboard in a real headless Chromium, against a real `cpkb serve` holding real points.
-
-Needs Debian's `chromium` (`.ci/run` installs it); skipped, saying so, only where it is absent.
-Playwright drives it through `executable_path`: no browser download.
-"""
+"""The dashboard in a real headless Chromium, against a real `cpkb serve` holding real points
+(Chromium from conftest.py)."""
 
 from __future__ import annotations
 
 import random
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -15,42 +11,11 @@ import pytest
 
 from client import CpkbClient
 from cpkb.embedded import embedded_service
+from tests.server.dashboard.browser_support import LIVE_TIMEOUT_MS, launch, no_sideways_scroll
 from tests.service_support import make_graph, make_point
 from tests.wait_support import wait_until
 
 pytestmark = pytest.mark.browser
-
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-LIVE_TIMEOUT_MS = 60_000  # the page polls every 3 s; a loaded machine renders slowly
-
-
-@pytest.fixture(scope="module")
-def chromium() -> str:
-    path = shutil.which("chromium") or shutil.which("chromium-browser")
-    if path is None and Path("/usr/bin/chromium").exists():
-        path = "/usr/bin/chromium"
-    if path is None:
-        pytest.skip("Chromium not found: install Debian's `chromium` package (.ci/run does)")
-    return path
-
-
-def _launch(playwright: Any, chromium: str) -> Any:
-    return playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
-
-
-def _no_sideways_scroll(page: Any) -> bool:
-    return page.evaluate(
-        "document.scrollingElement.scrollWidth <= document.scrollingElement.clientWidth"
-    )
 
 
 def _boundary_points(graph: dict[str, Any], n: int) -> list[dict[str, Any]]:
@@ -81,7 +46,7 @@ def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
 
         wait_until(fitted, what="the type's first fit")
         with sync_playwright() as playwright:
-            browser = _launch(playwright, chromium)
+            browser = launch(playwright, chromium)
             try:
                 page = browser.new_page(viewport={"width": 1200, "height": 900})
                 page.goto(f"{url}/ui/kbs/default/types/{type_id}")
@@ -107,15 +72,15 @@ def test_pages_fit_a_400_px_wide_screen(chromium: str, sqlite_url: str) -> None:
     with embedded_service(sqlite_url) as url, CpkbClient(url) as client:
         type_id = client.post_points("default", _points(make_graph(), 0, 12))[0].type_id
         with sync_playwright() as playwright:
-            browser = _launch(playwright, chromium)
+            browser = launch(playwright, chromium)
             try:
                 page = browser.new_page(viewport={"width": 400, "height": 800})
                 page.goto(f"{url}/")
                 expect(page.locator("#types-table tbody tr")).to_have_count(1)
-                assert _no_sideways_scroll(page)
+                assert no_sideways_scroll(page)
                 page.goto(f"{url}/ui/kbs/default/types/{type_id}")
                 expect(page.locator("svg.cp-graph")).to_be_visible()
-                assert _no_sideways_scroll(page)
+                assert no_sideways_scroll(page)
             finally:
                 browser.close()
 
@@ -137,7 +102,7 @@ def test_dashboard_in_headless_chromium(chromium: str, sqlite_url: str, tmp_path
         client.post_points("default", _points(shelf, 0, 6))
         errors: list[str] = []
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+            browser = launch(playwright, chromium)
             try:
                 page = browser.new_page(viewport={"width": 1400, "height": 1000})
                 page.on("pageerror", lambda exc: errors.append(str(exc)))

@@ -50,6 +50,79 @@ def _rows(html: str, tbody_id: str) -> list[str]:
     return re.findall(r"<tr[^>]*>.*?</tr>", body.group(1), re.S)
 
 
+def _point_ids(html: str) -> list[int]:
+    return [int(i) for i in re.findall(r'<tr class="(?:in)?feasible" data-point-id="(\d+)">', html)]
+
+
+def _link(html: str, link_id: str) -> str | None:
+    found = re.search(rf'id="{link_id}" href="([^"]+)"', html)
+    return found.group(1).replace("&amp;", "&") if found else None
+
+
+def test_points_table_filters_by_label_and_task(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    base = f"/ui/kbs/default/types/{stocked['blocked']}"
+    html = client.get(base, params={"feasible": "false", "task": "desk"}).text
+    ids = _point_ids(html)
+    # desk is i < 20, feasible is i % 3 == 0: 13 infeasible desk points
+    assert len(ids) == 13 and "13 of 27 points match" in html
+    assert 'class="feasible"' not in html.split('id="points-table"')[1]
+    assert len(_point_ids(client.get(base, params={"feasible": "true"}).text)) == 9
+    assert len(_point_ids(client.get(base, params={"task": "deskP"}).text)) == 7
+    assert "no points match" in client.get(base, params={"task": "nowhere"}).text
+    for bad in ({"feasible": "maybe"}, {"order": "sideways"}, {"after": "-1"}):
+        assert client.get(base, params=bad).status_code == 422, bad
+    assert client.get(base, params={"after": 5, "before": 9}).status_code == 422
+
+
+@pytest.mark.parametrize("order", ["newest", "oldest"])
+def test_points_table_pages_forward_and_back_in_either_order(
+    stocked: dict[str, Any], order: str
+) -> None:
+    """Through the poll's table fragment (the page's own links, without its pictures)."""
+    client = stocked["client"]
+    base = f"/ui/api/kbs/default/types/{stocked['blocked']}"
+
+    def table(query: str) -> str:
+        return client.get(base + query).json()["fragments"]["points-panel"]
+
+    html = table(f"?limit=10&order={order}")
+    assert _link(html, "prev-page") is None
+    pages = [_point_ids(html)]
+    while (href := _link(html, "next-page")) is not None:
+        html = table(href)
+        pages.append(_point_ids(html))
+    assert [len(p) for p in pages] == [10, 10, 7]
+    flat = [i for page in pages for i in page]
+    assert flat == sorted(flat, reverse=order == "newest") and len(set(flat)) == 27
+    back = []
+    while (href := _link(html, "prev-page")) is not None:
+        html = table(href)
+        back.append(_point_ids(html))
+    assert back == [pages[1], pages[0]]
+    assert _link(html, "first-page") is not None
+
+
+def test_type_json_carries_the_filtered_table(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    url = f"/ui/api/kbs/default/types/{stocked['blocked']}"
+    data = client.get(url, params={"feasible": "true", "order": "oldest"}).json()
+    assert data["table"]["n_matching"] == 9
+    assert all(p["feasible"] for p in data["table"]["points"])
+    assert "feasible=true" in data["poll"]
+    assert len(_point_ids(data["fragments"]["points-panel"])) == 9
+
+
+def test_overview_pages_its_types(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    first = client.get("/", params={"limit": 1}).text
+    assert len(_rows(first, "types-rows")) == 1 and "types 1-1 of 2" in first
+    second = client.get("/" + _link(first, "types-next").lstrip("/")).text
+    assert len(_rows(second, "types-rows")) == 1 and "types 2-2 of 2" in second
+    assert _link(second, "types-next") is None and _link(second, "types-prev")
+    assert set(_rows(first, "types-rows")) != set(_rows(second, "types-rows"))
+
+
 def test_overview_lists_bases_types_with_provenance_and_workers(stocked: dict[str, Any]) -> None:
     client = stocked["client"]
     page = client.get("/")
@@ -69,7 +142,8 @@ def test_overview_lists_bases_types_with_provenance_and_workers(stocked: dict[st
     workers = _rows(html, "workers-rows")
     names = {re.search(r"<td>(.*?)</td>", row).group(1) for row in workers}
     assert names == {"worker-0", "worker-1", "worker-9", "lab-worker"}
-    assert 'data-poll="/ui/api/overview?kb=default"' in html
+    assert 'data-poll="/ui/api/overview?kb=default&amp;offset=0&amp;limit=50"' in html
+    assert "types 1-2 of 2" in html
 
 
 def test_overview_of_another_base_and_of_an_unknown_one(stocked: dict[str, Any]) -> None:
@@ -88,7 +162,7 @@ def test_overview_json_carries_data_and_the_fragments_the_page_swaps_in(
     before = client.get("/ui/api/overview").json()
     assert before["kb"] == "default"
     assert {t["type_id"]: t["n_points"] for t in before["types"]}[stocked["blocked"]] == 27
-    assert set(before["fragments"]) == {"kbs-rows", "types-rows", "workers-rows"}
+    assert set(before["fragments"]) == {"kbs-rows", "types-rows", "types-panel", "workers-rows"}
     _post(
         client,
         "default",
@@ -120,16 +194,8 @@ def test_type_page_shows_graph_heat_map_surrogate_and_a_page_of_points(
     marks = [e for e in heatmap.iter() if e.get("class") == "cp-observed"]
     assert len(marks) == 27  # every stored point drawn
     assert 'id="surrogate-panel"' in html and 'id="provenance-panel"' in html
-    rows = re.findall(r'<tr class="(?:feasible|infeasible)">', html)
-    assert len(rows) == 10
-    next_link = re.search(r'id="next-page" href="\?cursor=(\d+)&amp;limit=10', html)
-    assert next_link
-    second = client.get(f"/ui/kbs/default/types/{type_id}?limit=10&cursor={next_link.group(1)}")
-    first_ids = re.findall(r'<td class="num">(\d+)</td>\s*<td>(?:in)?feasible', html)
-    second_ids = re.findall(r'<td class="num">(\d+)</td>\s*<td>(?:in)?feasible', second.text)
-    assert len(first_ids) == len(second_ids) == 10
-    assert not set(first_ids) & set(second_ids)
-    assert min(map(int, second_ids)) > max(map(int, first_ids))
+    assert len(_point_ids(html)) == 10
+    assert "27 of 27 points match" in html
 
 
 def test_heat_map_axes_can_be_chosen(stocked: dict[str, Any]) -> None:
@@ -150,10 +216,15 @@ def test_type_json_follows_new_points(stocked: dict[str, Any]) -> None:
     url = f"/ui/api/kbs/default/types/{stocked['shelf']}"
     before = client.get(url).json()
     assert before["n_points"] == 4
-    assert set(before["fragments"]) == {"stats-panel", "provenance-panel", "surrogate-panel"}
+    assert set(before["fragments"]) == {
+        "stats-panel",
+        "provenance-panel",
+        "surrogate-panel",
+        "points-panel",
+    }
     _post(client, "default", [make_point(7, graph=make_graph("Plan-motion", ("shelf",)))])
     after = client.get(url).json()
-    assert after["n_points"] == 5 and after["heatmap_key"] != before["heatmap_key"]
+    assert after["n_points"] == 5 and after["figure_key"] != before["figure_key"]
     assert '<dd id="n-points">5</dd>' in after["fragments"]["stats-panel"]
 
 
@@ -185,3 +256,66 @@ def test_empty_service_shows_empty_tables(app_client: Any) -> None:
     html = app_client.get("/").text
     assert "no CP type in this knowledge base yet" in html
     assert "no worker has posted points" in html
+
+
+def test_overview_queries_do_not_grow_with_the_number_of_types(core_client: Any) -> None:
+    from sqlalchemy import event
+
+    store = core_client.app.state.store
+    counted: list[str] = []
+
+    def count(*args: Any) -> None:
+        counted.append(args[2])
+
+    def statements() -> int:
+        counted.clear()
+        event.listen(store.engine, "before_cursor_execute", count)
+        try:
+            assert core_client.get("/ui/api/overview").status_code == 200
+        finally:
+            event.remove(store.engine, "before_cursor_execute", count)
+        return len(counted)
+
+    def add_types(start: int, n: int) -> None:
+        graphs = [make_graph("Inv-kin", (f"body{k}",)) for k in range(start, start + n)]
+        _post(core_client, "default", [make_point(k, graph=g) for k, g in enumerate(graphs)])
+
+    add_types(0, 2)
+    few = statements()
+    add_types(2, 20)
+    assert statements() == few
+
+
+def test_a_whole_knowledge_base_exports_as_one_zip(stocked: dict[str, Any]) -> None:
+    import csv
+    import io
+    import json
+    import zipfile
+
+    client = stocked["client"]
+    response = client.get("/ui/kbs/default/export.zip")
+    assert response.status_code == 200
+    assert response.headers["content-type"] == "application/zip"
+    assert "attachment" in response.headers["content-disposition"]
+    archive = zipfile.ZipFile(io.BytesIO(response.content))
+    meta = json.loads(archive.read("types.json"))
+    assert meta["kb"] == "default"
+    by_id = {t["type_id"]: t for t in meta["types"]}
+    assert set(by_id) == {stocked["blocked"], stocked["shelf"]}
+    assert by_id[stocked["blocked"]]["graph"]["nodes"] and by_id[stocked["blocked"]]["space"]
+    rows = list(
+        csv.DictReader(io.StringIO(archive.read(f"points/{stocked['blocked']}.csv").decode()))
+    )
+    assert len(rows) == 27 and {r["task"] for r in rows} == {"desk", "deskP"}
+    assert client.get("/ui/kbs/nope/export.zip").status_code == 404
+    assert 'href="/ui/kbs/default/export.zip"' in client.get("/").text
+
+
+def test_choosing_heat_map_axes_keeps_the_table_filters(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    html = client.get(
+        f"/ui/kbs/default/types/{stocked['blocked']}", params={"feasible": "false", "task": "desk"}
+    ).text
+    form = re.search(r'<form class="dims" method="get">(.*?)</form>', html, re.S).group(1)
+    assert '<input type="hidden" name="feasible" value="false">' in form
+    assert '<input type="hidden" name="task" value="desk">' in form

@@ -1,0 +1,78 @@
+"""A type's pictures (heat map, slices, history) drawn from one read of what they need: the
+type's space, the fit's lengthscales, its latest points, the surrogate's predict and the slice
+the other dimensions are held at."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from server.dashboard import views
+from server.dashboard.heatmap import (
+    Predict,
+    Slice,
+    choose_slice,
+    continuous_dims,
+    render_heatmap_svg,
+)
+from server.dashboard.history_svg import render_history_svg
+from server.dashboard.slices import render_slices_svg
+from server.db import Store
+from server.hooks import ServiceHooks
+from server.services import browse, types
+
+# The surrogate engine's in-process predict: (kb, type_id, decision values) -> P(feasible).
+EnginePredict = Callable[[str, str, list[dict[str, Any]]], Any]
+
+
+@dataclass(frozen=True)
+class Inputs:
+    space: dict[str, Any]
+    relevance: dict[str, float]
+    observed: list[tuple[dict[str, Any], bool]]
+    predict: Predict | None
+    held: Slice
+
+
+def predictor(engine: EnginePredict | None, kb: str, type_id: str) -> Predict | None:
+    """One type's predict, or None where no engine is installed (no surrogate yet)."""
+    if engine is None:
+        return None
+
+    def run(xs: list[dict[str, Any]]) -> list[float]:
+        return list(engine(kb, type_id, xs))
+
+    return run
+
+
+def inputs(
+    store: Store, hooks: ServiceHooks, engine: EnginePredict | None, kb: str, type_id: str
+) -> Inputs:
+    detail = types.get_type(store, kb, type_id)
+    state = views.surrogate_state(hooks, kb, type_id) or {}
+    observed = views.observed_points(store, kb, type_id)
+    return Inputs(
+        space=detail.space,
+        relevance=views.dim_lengthscales(detail.space, state.get("lengthscales")),
+        observed=observed,
+        predict=predictor(engine, kb, type_id),
+        held=choose_slice(detail.space, observed),
+    )
+
+
+def heatmap(f: Inputs, x: str | None, y: str | None, n: int) -> str:
+    dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
+    return render_heatmap_svg(f.space, dx, dy, f.predict, f.observed, n=n, held=f.held)
+
+
+def slices(f: Inputs) -> str:
+    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance)
+
+
+def type_history(store: Store, kb: str, type_id: str) -> str:
+    return render_history_svg(browse.history(store, kb, type_id), "task")
+
+
+def kb_history(store: Store, kb: str) -> str:
+    return render_history_svg(browse.history(store, kb), "type")

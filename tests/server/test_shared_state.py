@@ -1,0 +1,148 @@
+"""What replicas share through the database, piece by piece: the pending book and the stored
+fits with their claims (the two-replica service is in tests/reliability/test_replicas.py)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from service_support import make_graph, make_point
+
+from client.models import PointIn
+from server.db import Store
+from server.schema import prepare_database
+from server.services.points import add_points
+from server.services.types import load_training_points
+from server.surrogates.engine import EngineConfig, SurrogateEngine
+from server.surrogates.pending_db import DatabasePendingBook
+from server.surrogates.shared import FitShare
+from surrogate.encoding import SpaceEncoder
+from surrogate.models import fit_classifier
+
+
+@pytest.fixture
+def store(db_url: str) -> Iterator[Store]:
+    store = Store.from_url(db_url)
+    prepare_database(store)
+    yield store
+    store.dispose()
+
+
+def test_the_pending_book_is_shared_and_answered(store: Store) -> None:
+    mine, theirs = DatabasePendingBook(store, 30.0), DatabasePendingBook(store, 30.0)
+    bind = {"#pose": "p", "#dir": "d"}
+    mine.add("default", {"p": [0.1, 0.2, 0.0], "d": "top"}, [("T1", bind)])
+    mine.add("default", {"q": 0.5}, [])
+    assert theirs.count("default") == 2
+    assert theirs.for_request("default", frozenset({"T1"})) == [{"p": [0.1, 0.2, 0.0], "d": "top"}]
+    assert theirs.for_request("default", frozenset()) == [{"q": 0.5}]
+    assert theirs.for_request("default", frozenset({"T2"})) == []
+    # A point of T1 elsewhere answers nothing; at the suggested values it answers the entry.
+    assert theirs.answered("default", "T1", [{"#pose": [0.9, 0.2, 0.0], "#dir": "top"}]) == 0
+    assert theirs.answered("default", "T1", [{"#pose": [0.1, 0.2, 0.0], "#dir": "top"}]) == 1
+    assert mine.for_request("default", frozenset({"T1"})) == []
+
+
+def test_what_planners_put_is_replaced_and_shown_to_the_others(store: Store) -> None:
+    """The pending exchange's side of the book: a run's report replaces its last one."""
+    book = DatabasePendingBook(store, 30.0)
+    bind = {"#pose": "p"}
+    book.add("default", {"p": [0.0, 0.0, 0.0]}, [("T1", bind)])  # served by a replica
+    book.put("default", "run-a", [({"p": [0.1, 0.0, 0.0]}, [("T1", bind)])])
+    book.put("default", "run-a", [({"p": [0.2, 0.0, 0.0]}, [("T1", bind)])])
+    book.put("default", "run-b", [({"p": [0.3, 0.0, 0.0]}, [("T2", bind)])])
+    seen_by_a = [e.x["p"][0] for e in book.others("default", frozenset({"T1", "T2"}), "run-a")]
+    assert seen_by_a == [0.0, 0.3]
+    seen_by_b = [e.x["p"][0] for e in book.others("default", frozenset({"T1"}), "run-b")]
+    assert seen_by_b == [0.0, 0.2]
+    book.put("default", "run-a", [])  # withdrawn
+    assert book.count("default") == 2
+
+
+def test_pending_entries_expire(store: Store) -> None:
+    book = DatabasePendingBook(store, 0.05)
+    book.add("default", {"q": 0.5}, [])
+    time.sleep(0.2)
+    assert book.for_request("default", frozenset()) == []
+    book.add("default", {"q": 0.7}, [])  # and the expired row is gone from the table
+    assert book.count("default") == 1
+
+
+def _type_pk(store: Store) -> int:
+    """The row id of a type with a few points in `default`."""
+    graph = make_graph()
+    points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(12)]
+    type_id = add_points(store, "default", points).results[0].type_id
+    return load_training_points(store, "default", type_id).origin[0]
+
+
+@pytest.mark.slow
+def test_a_stored_fit_loads_as_it_was_saved(store: Store) -> None:
+    pk = _type_pk(store)
+    rng = np.random.default_rng(0)
+    z = rng.random((40, 3))
+    fit = fit_classifier(z, z[:, 0] > 0.5, max_iters=10)
+    a, b = FitShare(store, "a"), FitShare(store, "b")
+    assert b.newer(pk, 0) is None
+    assert a.save(pk, fit)
+    stored = b.newer(pk, 0)
+    assert stored is not None and stored.fitted_by == "a" and stored.fit.n_fitted == 40
+    probe = rng.random((5, 3))
+    assert np.allclose(stored.fit.predictor.proba(probe), fit.predictor.proba(probe))
+    assert stored.fit.warm_state is not None and stored.fit.warm_state["m"] == fit.warm_state["m"]
+    assert b.newer(pk, 40) is None
+    # An older version never replaces a newer one.
+    older = fit_classifier(z[:30], z[:30, 0] > 0.5, max_iters=5)
+    assert not b.save(pk, older)
+    assert a.version(pk) == 40
+
+
+@pytest.mark.postgres
+def test_one_claim_per_type_across_replicas(postgres_url: str) -> None:
+    store_a, store_b = Store.from_url(postgres_url), Store.from_url(postgres_url)
+    try:
+        prepare_database(store_a)
+        pk = _type_pk(store_a)
+        a, b = FitShare(store_a, "a"), FitShare(store_b, "b")
+        with a.claim(pk) as got_a:
+            assert got_a
+            with b.claim(pk) as got_b:
+                assert not got_b
+            with b.claim(pk + 1) as other:
+                assert other  # another type is free
+        with b.claim(pk) as got_b:
+            assert got_b  # released with the fit
+    finally:
+        store_a.dispose()
+        store_b.dispose()
+
+
+@pytest.mark.slow
+def test_a_restarted_engine_serves_the_stored_fit_without_fitting(store: Store) -> None:
+    """What a second replica (or the same service after a restart) does with a type the first
+    has fitted: it loads that fit on its first request and fits nothing."""
+    graph = make_graph()
+    points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(30)]
+    type_id = add_points(store, "default", points).results[0].type_id
+    config = EngineConfig(fit_in_child_process=False, prefit_types=0)
+    first = SurrogateEngine(store, config)
+    first.start()
+    try:
+        first.model("default", type_id)
+        assert first.wait_idle(120)
+        assert first.fits == 1
+        fitted = first.model("default", type_id)
+    finally:
+        first.stop()
+    second = SurrogateEngine(store, config)
+    try:
+        served = second.model("default", type_id)
+        assert (served.version, served.n_fitted) == (fitted.version, 30)
+        assert second.wait_idle(120)
+        assert (second.fits, second.adopted) == (0, 1)
+        z = SpaceEncoder(served.space).encode_points([make_point(i)["x"] for i in range(40, 45)])
+        assert np.allclose(served.predictor.proba(z), fitted.predictor.proba(z))
+    finally:
+        second.stop()
