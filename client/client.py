@@ -20,7 +20,7 @@ import random
 import ssl
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -39,6 +39,9 @@ from client.models import (
     MatchResult,
     ModelsIn,
     ModelsOut,
+    PendingIn,
+    PendingOut,
+    PendingPoint,
     PointIn,
     PointOut,
     PointResult,
@@ -317,6 +320,13 @@ class CpkbClient:
         """The current predictors of these types (minus those still at a `known` version)."""
         body = self._body(ModelsIn(type_ids=list(type_ids), known=dict(known or {})))
         return self._call(ModelsOut, "POST", f"/v1/kbs/{kb}/models", json=body)
+
+    def exchange_pending(
+        self, kb: str, run: str, served: Sequence[PendingPoint], type_ids: Sequence[str]
+    ) -> PendingOut:
+        """Report this run's unanswered suggestions; the other runs' of these types back."""
+        body = self._body(PendingIn(run=run, served=list(served), type_ids=list(type_ids)))
+        return self._call(PendingOut, "POST", f"/v1/kbs/{kb}/pending", json=body)
 
     def predict(self, kb: str, type_id: str, xs: Iterable[Mapping[str, Any]]) -> list[float]:
         """P(feasible) of each x (decision label -> value) under the type's surrogate."""

@@ -188,12 +188,19 @@ class KnowledgeConfig:
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
     same name (`planner.failures.graphs`); the paper labels by name."""
-    live_points: bool = False
+    live_points: bool = True
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
-    runs must not depend on what others post meanwhile."""
+    runs must not depend on what others post meanwhile. On: planners at once on one base took
+    fewer rollouts with it than sharing through fits only, and a planner alone is unchanged
+    but for one background poll per rollout (BENCHMARKS.md, issue 23)."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
+    live_pending: bool = False
+    """With `live_points`, also report this planner's pending suggestions to the service and
+    keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
+    Off: each planner needs a feasible binding of its own, and pushing it off the placements
+    the others are about to try cost pack rollouts (BENCHMARKS.md, issue 23)."""
 
     def __post_init__(self) -> None:
         _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0, live_every_rollouts=1)

@@ -106,6 +106,9 @@ class PlanResult:
     local_suggestions: int = 0
     model_fetches: int = 0
     kb_errors: int = 0
+    live_points: int = 0  # other planners' points taken in during the run (live sharing)
+    live_types: int = 0  # types other planners created during the run, activated from them
+    pending_shared: int = 0  # other planners' pending suggestions this run was kept away from
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
@@ -258,6 +261,9 @@ def _plan_with_knowledge(
             local_suggestions=stats.local_suggestions,
             model_fetches=stats.model_fetches,
             kb_errors=stats.errors + session.poster.failed,
+            live_points=stats.live_points,
+            live_types=stats.live_types,
+            pending_shared=stats.pending_shared,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],

@@ -117,12 +117,14 @@ def suggest(
     *,
     key: str,
     config: OptimizerConfig,
+    shared: Sequence[Mapping[str, Value]] = (),
 ) -> SuggestAnswer:
     """The MPF maximiser over `request.space` for its constraints (a space-filling point when
     there are none), away from `exclude` and from the suggestions pending in `book` under `key`;
-    the answer's points are recorded there as pending. Raises InvalidRequest naming the field,
-    SpaceExhausted when a finite space is wholly excluded, and whatever `source` raises for an
-    unknown type."""
+    the answer's points are recorded there as pending. `shared`: more pending points, in this
+    request's variables, kept away from but not recorded (other planners'). Raises
+    InvalidRequest naming the field, SpaceExhausted when a finite space is wholly excluded, and
+    whatever `source` raises for an unknown type."""
     _check_lookahead(request)
     models: dict[str, TypeModel] = {}
     terms: list[ConstraintTerm] = []
@@ -136,7 +138,7 @@ def suggest(
                 constraint.type_id, model.predictor, model.space, constraint.bind, request.fixed
             )
         )
-    pending = book.for_request(key, frozenset(models))
+    pending = [*book.for_request(key, frozenset(models)), *shared]
     seed = request.seed if request.seed is not None else secrets.randbits(31)
     try:
         if terms:

@@ -6,8 +6,9 @@ import contextlib
 import functools
 import sys
 import tempfile
+import time
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,9 @@ from cpkb.bench.scenarios import (
     task_kinds,
 )
 from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
+from cpkb.bench.together import HEADERS as TOGETHER_HEADERS
+from cpkb.bench.together import GroupCheck, summarize_together, write_together
+from cpkb.bench.together import table_rows as together_rows
 from cpkb.bench.variants import Variant
 
 
@@ -47,6 +51,8 @@ class BenchSettings:
     quiet: bool = False
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     concurrent: int = 1  # the runs of a cell N at a time on one knowledge base
+    mixed: bool = False  # N runs of different tasks at a time instead
+    alone_dir: str | Path | None = None  # the same seeds run alone (default: OUT/alone)
     variants: Mapping[str, Variant] = field(default_factory=dict)  # named method + knobs
     ray_address: str | None = None  # run on this Ray cluster rather than a local pool
 
@@ -60,6 +66,11 @@ def plan_run(
     from planner.run import run_plan
 
     return run_plan(task, method, seed, config=PlanConfig().with_overrides(config or {}), **kwargs)
+
+
+def alone_dir(settings: BenchSettings) -> Path:
+    """Where the same seeds run alone, for a `--concurrent` bench's comparison."""
+    return Path(settings.alone_dir or Path(settings.out_dir) / "alone")
 
 
 def known_methods() -> set[str]:
@@ -89,6 +100,8 @@ def check_request(settings: BenchSettings) -> None:
         require_ray()
         if settings.concurrent > 1:
             raise ValueError("--concurrent runs wait for each other on one machine: not with --ray")
+    if settings.mixed:
+        _check_mixed(settings)
     methods, tasks = known_methods() | set(settings.variants), known_tasks()
     unknown_m = [m for m in settings.methods if m not in methods]
     if unknown_m:
@@ -108,6 +121,21 @@ def check_request(settings: BenchSettings) -> None:
     )
     if unknown_t:
         raise ValueError(f"unknown task {unknown_t[0]!r} (known: {', '.join(sorted(tasks))})")
+
+
+def _check_mixed(settings: BenchSettings) -> None:
+    """Mixed groups are different tasks of one workspace, at least two at a time."""
+    if settings.concurrent < 2 or len(settings.tasks) < 2:
+        raise ValueError("--mixed needs --concurrent 2 or more and two tasks or more")
+    from planner.tasks import load_task
+
+    workspaces = {}
+    for task in settings.tasks:
+        if not task.startswith(ANALYTIC_PREFIX):
+            workspaces[task] = load_task(task).workspace.name
+    if len(set(workspaces.values())) > 1:
+        shown = ", ".join(f"{t}: {w}" for t, w in workspaces.items())
+        raise ValueError(f"--mixed runs tasks of one workspace together, not {shown}")
 
 
 @contextlib.contextmanager
@@ -148,6 +176,8 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
     for cells in table_rows(rows):
         table.add_row(*cells)
     console.print(table)
+    if settings.concurrent > 1:
+        paths += _report_together(records, settings, console)
     console.print("wrote " + ", ".join(str(p) for p in paths))
     troubled = sum(r.kb_error_runs for r in rows)
     if troubled:
@@ -157,7 +187,52 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
         )
 
 
+def _report_together(
+    records: Sequence[dict[str, Any]], settings: BenchSettings, console: Console
+) -> list[Path]:
+    """The concurrent runs against the same seeds alone, and the groups' point check."""
+    alone = ResultStore(alone_dir(settings)).records()
+    rows = summarize_together(records, alone, settings.tasks, settings.methods)
+    check = GroupCheck.of(ResultStore(settings.out_dir).groups())
+    table = Table(*TOGETHER_HEADERS, title=f"together against alone ({alone_dir(settings)})")
+    for cells in together_rows(rows):
+        table.add_row(*cells)
+    console.print(table)
+    console.print(check.line())
+    return write_together(rows, check, settings.out_dir)
+
+
 def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
+    """The bench's runs; a `--concurrent` bench runs the same seeds alone first (those not yet
+    in the alone directory), for its comparison. An alone directory that holds them all is
+    only read, whatever knobs it was run with: an A/B of a knob that matters only together
+    (live sharing) compares both arms with the same alone runs."""
+    if settings.concurrent <= 1:
+        return _execute(settings, run_fn, console)
+    solo = replace(settings, concurrent=1, mixed=False, out_dir=alone_dir(settings))
+    started = time.monotonic()
+    scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
+    if not ResultStore(solo.out_dir).pending(scenarios):
+        return _execute(settings, run_fn, console)
+    first = _execute(solo, run_fn, console)
+    if first.remaining or first.interrupted:
+        return first
+    left = None
+    if settings.time_limit_s is not None:
+        left = max(settings.time_limit_s - (time.monotonic() - started), 1.0)
+    second = _execute(replace(settings, time_limit_s=left), run_fn, console)
+    return BenchOutcome(
+        finished=first.finished + second.finished,
+        errors=first.errors + second.errors,
+        remaining=second.remaining,
+        skipped=first.skipped + second.skipped,
+        timed_out=second.timed_out,
+        interrupted=second.interrupted,
+        error_messages=first.error_messages + second.error_messages,
+    )
+
+
+def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
     scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
     service = (
@@ -186,6 +261,7 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
             progress=None if settings.quiet else RichProgress(console),
             config=settings.config,
             concurrent=settings.concurrent,
+            mixed=settings.mixed,
             pool=pool,
         )
 

@@ -37,6 +37,11 @@ class ServiceKbs:
                 client.delete_kb(name)
         return len(names)
 
+    def count_points(self, name: str) -> int:
+        """The points `name` holds."""
+        with self._client() as client:
+            return client.get_kb(name).n_points
+
     def wait_fitted(self, name: str, timeout: float = FIT_WAIT_S) -> float:
         """Block until every type of `name` has a surrogate fitted on all its points, the state a
         persistent knowledge base reaches between two tasks; returns the seconds waited (at most

@@ -182,3 +182,6 @@ class WorkerKbs:
 
     def wait_fitted(self, name: str, timeout: float = FIT_WAIT_S) -> float:
         return self._kbs().wait_fitted(name, timeout)
+
+    def count_points(self, name: str) -> int:
+        return self._kbs().count_points(name)

@@ -23,8 +23,9 @@ from cpkb.bench.scenarios import Scenario
 RUNS_FILE = "runs.jsonl"
 COMPRESSED_RUNS_FILES = ("runs.jsonl.xz", "runs.jsonl.gz")
 ERRORS_FILE = "errors.jsonl"
+GROUPS_FILE = "groups.jsonl"
 CONFIG_FILE = "bench.json"
-PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}, "concurrent": 1}
+PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}, "concurrent": 1, "mixed": False}
 """A setting a directory made before it was pinned holds at this value."""
 
 
@@ -57,6 +58,7 @@ class ResultStore:
         self.runs_path = self.out_dir / RUNS_FILE
         self.compressed_runs_paths = [self.out_dir / name for name in COMPRESSED_RUNS_FILES]
         self.errors_path = self.out_dir / ERRORS_FILE
+        self.groups_path = self.out_dir / GROUPS_FILE
         self.config_path = self.out_dir / CONFIG_FILE
 
     def pin_config(self, config: Mapping[str, Any]) -> None:
@@ -95,6 +97,10 @@ class ResultStore:
     def errors(self) -> list[dict[str, Any]]:
         return list(_read_jsonl(self.errors_path))
 
+    def groups(self) -> list[dict[str, Any]]:
+        """The point counts of finished concurrent groups (`runner._check_group`)."""
+        return list(_read_jsonl(self.groups_path))
+
     def finished(self) -> set[tuple[str, str, int]]:
         return {(r["task"], r["method"], int(r["seed"])) for r in self.records()}
 
@@ -107,6 +113,9 @@ class ResultStore:
 
     def append_error(self, record: Mapping[str, Any]) -> None:
         self._append(self.errors_path, record)
+
+    def append_group(self, record: Mapping[str, Any]) -> None:
+        self._append(self.groups_path, record)
 
     def _append(self, path: Path, record: Mapping[str, Any]) -> None:
         self.out_dir.mkdir(parents=True, exist_ok=True)

@@ -3,7 +3,10 @@
 With `concurrent=N`, the runs of a cell go N at a time into one fresh knowledge base (seeds in
 blocks of N, in the cell's seed order): the members of a group are dispatched one after the
 other and wait for each other at a barrier, so that they plan at once and learn from each other
-while they run; each record names its `group`.
+while they run; each record names its `group`. With `mixed`, a group holds different tasks of
+one workspace instead (the bench's tasks in turn, seed by seed), as a lab's planners share one
+base. When a group's last run is in, the points its base holds are counted against those its
+runs posted (`groups.jsonl`): a point lost or stored twice shows there.
 
 The run function is a parameter (any picklable callable with `run_plan`'s signature), so the
 pool, resumability and time limit work the same for the real planner and for small planners.
@@ -60,6 +63,7 @@ class Group:
     kb_name: str
     size: int
     barrier: Any
+    mixed: bool = False
 
 
 class KbService(Protocol):
@@ -74,6 +78,8 @@ class KbService(Protocol):
     def delete_prefix(self, prefix: str) -> int: ...
 
     def wait_fitted(self, name: str) -> float: ...
+
+    def count_points(self, name: str) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -197,7 +203,10 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
         )
         if job.group is not None:
             record.update(
-                group=job.group.kb_name, concurrent=job.group.size, started_together=together
+                group=job.group.kb_name,
+                concurrent=job.group.size,
+                mixed=job.group.mixed,
+                started_together=together,
             )
         return True, record
     except Exception as exc:  # a failed run is reported and retried by a rerun, not fatal
@@ -225,15 +234,25 @@ def _start_together(group: Group) -> bool:
 
 
 def _grouped(
-    scenarios: Sequence[Scenario], pending: Sequence[Scenario], concurrent: int
+    scenarios: Sequence[Scenario], pending: Sequence[Scenario], concurrent: int, mixed: bool
 ) -> list[list[Scenario]]:
     """The pending runs in groups of at most `concurrent` per cell (blocks of the cell's seeds
-    among all `scenarios`, so that a rerun keeps the groups), in the order they come first."""
+    among all `scenarios`, so that a rerun keeps the groups), in the order they come first.
+    `mixed`: per method instead, in the scenarios' order (seed-major: each seed's tasks in
+    turn), so that a group's runs are of different tasks."""
     block: dict[tuple[str, str, int], tuple[str, str, int]] = {}
-    cells = itertools.groupby(sorted(scenarios), key=lambda s: (s.task, s.method))
-    for (task, method), members in cells:
-        for i, s in enumerate(members):
-            block[s.key] = (task, method, i // concurrent)
+    if mixed:
+        by_method: dict[str, list[Scenario]] = {}
+        for s in scenarios:
+            by_method.setdefault(s.method, []).append(s)
+        for method, members in by_method.items():
+            for i, s in enumerate(members):
+                block[s.key] = ("", method, i // concurrent)
+    else:
+        cells = itertools.groupby(sorted(scenarios), key=lambda s: (s.task, s.method))
+        for (task, method), members in cells:
+            for i, s in enumerate(members):
+                block[s.key] = (task, method, i // concurrent)
     groups: dict[tuple[str, str, int], list[Scenario]] = {}
     for s in pending:
         groups.setdefault(block[s.key], []).append(s)
@@ -324,12 +343,14 @@ def run_bench(
     progress: Progress | None = None,
     config: Mapping[str, Any] | None = None,
     concurrent: int = 1,
+    mixed: bool = False,
     pool: RunPool | None = None,
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
     rollout caps, since results under other knobs are another variant. `concurrent`: the runs
-    of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers).
+    of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers);
+    `mixed`: N runs of different tasks at a time instead (pinned).
     `pool`: where the runs go (default: a local pool of `workers` processes).
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
@@ -342,10 +363,10 @@ def run_bench(
         raise ValueError(
             f"concurrent runs do not take predecessors: leave out {', '.join(transfer)}"
         )
-    if concurrent > 1 and kb_service is None:
-        raise ValueError("concurrent runs share a knowledge base: they need a service")
     if concurrent > 1 and pool is not None:
         raise ValueError("concurrent runs wait for each other on this machine: use the local pool")
+    if mixed and (concurrent < 2 or len({s.task for s in scenarios}) < 2):
+        raise ValueError("mixed groups need --concurrent 2 or more and two tasks or more")
     store = ResultStore(out_dir)
     store.pin_config(
         {
@@ -353,12 +374,15 @@ def run_bench(
             "predecessor_rollouts": predecessor_rollouts,
             "config": dict(config or {}),
             "concurrent": concurrent,
+            "mixed": mixed,
         }
     )
     pending = store.pending(list(scenarios))
     outcome = BenchOutcome(skipped=len(scenarios) - len(pending), remaining=len(pending))
     if not pending:
         return outcome
+    if concurrent > 1 and kb_service is None:
+        raise ValueError("concurrent runs share a knowledge base: they need a service")
     prefix = f"bench-{uuid.uuid4().hex[:8]}"
     context = multiprocessing.get_context("spawn")
     manager = None
@@ -367,12 +391,14 @@ def run_bench(
         manager.start(_init_worker, (os.getpid(),))  # it too leaves with the bench process
     jobs: list[Job] = []
     open_groups: dict[tuple[str, str, int], Group] = {}
-    for members in _grouped(scenarios, pending, concurrent) if manager else [[s] for s in pending]:
+    grouped = _grouped(scenarios, pending, concurrent, mixed) if manager else None
+    for members in grouped or [[s] for s in pending]:
         group = None
         if manager is not None:
             first = members[0]
-            name = _kb_name(prefix, first.task, first.method, f"g{first.seed}")
-            group = Group(name, len(members), manager.Barrier(len(members)))
+            task = "mixed" if mixed else first.task
+            name = _kb_name(prefix, task, first.method, f"g{first.seed}")
+            group = Group(name, len(members), manager.Barrier(len(members)), mixed)
             open_groups.update({s.key: group for s in members})
         jobs += [
             Job(
@@ -394,6 +420,7 @@ def run_bench(
     pool = pool or LocalPool(max(workers, concurrent))
     pool.start(jobs)
     left = {g.kb_name: g.size for g in open_groups.values()}
+    members_in: dict[str, list[Mapping[str, Any]]] = {name: [] for name in left}
     try:
         for name in left if kb_service is not None else ():
             kb_service.create(name)
@@ -402,7 +429,9 @@ def run_bench(
             done = open_groups.get((record["task"], record["method"], int(record["seed"])))
             if done is not None and kb_service is not None:
                 left[done.kb_name] -= 1
+                members_in[done.kb_name].append(record if ok else {})
                 if not left[done.kb_name]:
+                    _check_group(store, kb_service, done, members_in.pop(done.kb_name))
                     with contextlib.suppress(Exception):  # leftovers go by prefix at the end
                         kb_service.delete(done.kb_name)
             if ok:
@@ -431,6 +460,31 @@ def run_bench(
             with contextlib.suppress(Exception):
                 kb_service.delete_prefix(prefix)
     return outcome
+
+
+def _check_group(
+    store: ResultStore, kbs: KbService, group: Group, records: Sequence[Mapping[str, Any]]
+) -> None:
+    """Record the points the group's base holds against those its runs posted (only when every
+    run finished: a failed run's posts are not known)."""
+    if not all(records):
+        return
+    try:
+        stored: int | None = kbs.count_points(group.kb_name)
+    except Exception:  # the check is a record, not a reason to stop the bench
+        stored = None
+    posted = sum(int(r.get("points_posted") or 0) for r in records)
+    store.append_group(
+        {
+            "group": group.kb_name,
+            "size": group.size,
+            "mixed": group.mixed,
+            "runs": [f"{r['task']}:{r['seed']}" for r in records],
+            "points_posted": posted,
+            "points_stored": stored,
+            "kb_error_runs": sum(1 for r in records if r.get("kb_errors")),
+        }
+    )
 
 
 def _next_result(pool: RunPool, deadline: float | None) -> tuple[bool, dict[str, Any]]:

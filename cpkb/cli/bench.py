@@ -93,7 +93,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help="plan the runs of a cell N at a time on one fresh knowledge base (seeds "
         "first..first+N-1 share one, the next N the next; at least N workers); each run's "
-        "record names its group; default 1: each run alone",
+        "record names its group; default 1: each run alone. The same seeds are run alone "
+        "too (into --alone), and OUT/summary_concurrent.md compares the two, with the "
+        "points each group's base holds against those its runs posted",
+    )
+    parser.add_argument(
+        "--mixed",
+        action="store_true",
+        help="with --concurrent N: a group is N runs of different tasks of one workspace "
+        "(the tasks in turn, seed by seed: --tasks desk,regrasp,pack --concurrent 3 runs "
+        "each seed's three tasks at once), as a lab's planners share one knowledge base",
+    )
+    parser.add_argument(
+        "--alone",
+        metavar="DIR",
+        default=None,
+        help="with --concurrent N: the results directory of the same seeds run alone (its "
+        "missing runs are run first; share it between benches of several N; one that holds "
+        "them all is only read, whatever knobs it was run with); default OUT/alone",
     )
     parser.add_argument("--out", default="bench-out", help="results directory (resumable)")
     parser.add_argument(
@@ -209,6 +226,8 @@ def handle(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         config=config_overrides(args),
         concurrent=args.concurrent,
+        mixed=args.mixed,
+        alone_dir=args.alone,
         variants=bench_variants(args.variants),
         ray_address=args.ray,
     )

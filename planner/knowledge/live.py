@@ -7,6 +7,11 @@ types this run watches (its active types, and the types of graphs prematch found
 folds them into its models as it does its own points. A watched absent type that comes back with
 points was created by another planner meanwhile: the session activates it at once.
 
+The session also shares what it has pending (`PendingExchange`): with each poll it reports the
+suggestions it served that no point has answered yet and reads back the other planners', which
+its own suggestions then keep away from, as the service's `suggest` keeps concurrent requests
+apart. When it closes it withdraws what is left.
+
 The cursor starts at the highest point id when the feed starts: what was stored before is in the
 models this planner fetches. On PostgreSQL a point whose transaction commits after one with a
 higher id was read is skipped here (it reaches this planner with the next fit).
@@ -17,9 +22,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from client.models import LivePoint, PointsSinceOut
+from client.models import LivePoint, PendingPoint, PointsSinceOut
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
+ExchangeFn = Callable[[list[PendingPoint], list[str]], list[PendingPoint]]
 MAX_PAGES = 8  # pages one poll reads before it hands over what it has
 
 
@@ -105,3 +111,58 @@ class _Poll:
             answer = self._poll(self._type_ids, answer.cursor)
             points += answer.points
         return answer.cursor, points
+
+
+class PendingExchange:
+    """This run's pending suggestions out, the other runs' back: one request every
+    `every_rollouts` rollouts, in the background if asked, one at a time."""
+
+    def __init__(
+        self, exchange: ExchangeFn, *, every_rollouts: int = 1, background: bool = True
+    ) -> None:
+        self._exchange = exchange
+        self.every_rollouts = every_rollouts
+        self._executor = (
+            ThreadPoolExecutor(1, thread_name_prefix="cpkb-pending") if background else None
+        )
+        self._in_flight: Future[list[PendingPoint]] | None = None
+        self._sent_at: int | None = None
+        self._reported = False
+        self.exchanges = 0
+
+    def tick(
+        self, rollout: int, served: Callable[[], list[PendingPoint]], type_ids: list[str]
+    ) -> list[PendingPoint] | None:
+        """The other runs' pending points if an exchange has landed since (None: no news), and
+        a new exchange if one is due (`served` is asked for this run's only then)."""
+        news = self._land()
+        due = self._sent_at is None or rollout - self._sent_at >= self.every_rollouts
+        if self._in_flight is not None or not due:
+            return news
+        reported = served()
+        if reported or type_ids or self._reported:
+            self._sent_at = rollout
+            self._reported = bool(reported)
+            self.exchanges += 1
+            if self._executor is None:
+                return self._exchange(reported, type_ids)
+            self._in_flight = self._executor.submit(self._exchange, reported, type_ids)
+        return news
+
+    def close(self) -> None:
+        """Wait for an exchange under way, then withdraw what this run still has pending."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
+        self._in_flight = None
+        if self._reported:
+            self._reported = False
+            self.exchanges += 1
+            self._exchange([], [])
+
+    def _land(self) -> list[PendingPoint] | None:
+        done = self._in_flight
+        if done is None or not done.done():
+            return None
+        self._in_flight = None
+        return done.result()

@@ -18,9 +18,10 @@ service would serve it.
 
 Like the service, it keeps the suggestions it served as pending until a point answers them (or
 they expire), and pushes new ones away from them: a batch's unused points and other nodes' recent
-suggestions keep the tree spread. What it cannot see are other planners' pending suggestions:
-planners that share one knowledge base and want to be pushed apart ask the service instead
-(`KnowledgeSession(local=False)`).
+suggestions keep the tree spread. With live sharing, the session reports them to the service and
+hands back the other planners' (`served`, `share`: `planner.knowledge.live.PendingExchange`);
+those are pushed away from too, mapped through their types' decision labels onto this request's
+variables (another task names its variables its own way).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from client import models as wire
-from client.models import ModelsOut, SuggestIn, SuggestOut
+from client.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
 from planner.config import KnowledgeConfig
 from surrogate import snapshot
 from surrogate.config import SurrogateConfig
@@ -48,6 +49,27 @@ from surrogate.suggest import suggest as suggest_point
 
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
+Shared = tuple[dict[str, Value], tuple[tuple[str, tuple[tuple[str, str], ...]], ...]]
+
+
+def in_request_terms(shared: list[Shared], constraints: list[Constraint]) -> list[dict[str, Value]]:
+    """Other planners' pending points as this request's variables: each type the point and the
+    request share maps the point's values, by the type's decision labels, onto the variables
+    the request binds them to (a point may so give only some of them)."""
+    wanted = {c.type_id for c in constraints}
+    out: list[dict[str, Value]] = []
+    for x, binds in shared:
+        for type_id, bind in binds:
+            if type_id not in wanted:
+                continue
+            for constraint in constraints:
+                if constraint.type_id != type_id:
+                    continue
+                mine = constraint.bind
+                point = {mine[label]: x[var] for label, var in bind if var in x and label in mine}
+                if point and point not in out:
+                    out.append(point)
+    return out
 
 
 def fetch_from(
@@ -149,6 +171,8 @@ class LocalSurrogates:
         )
         self._in_flight: _Fetch | None = None
         self._learned = 0  # the newest point id `learn` has taken in
+        self._shared: list[Shared] = []  # other planners' pending suggestions (`share`)
+        self.shared_used = 0  # of those, points suggestions here were kept away from
 
     def adopt(
         self,
@@ -194,6 +218,23 @@ class LocalSurrogates:
             model._predictor = None
             self._learned = max(self._learned, point_id)
 
+    def served(self, limit: int) -> list[PendingPoint]:
+        """The newest `limit` suggestions served here that no point has answered yet."""
+        entries = [e for e in self._pending.entries(PENDING_KEY) if e.binds][-limit:]
+        return [
+            PendingPoint(
+                x=e.x, binds=[Constraint(type_id=t, bind=dict(bind)) for t, bind in e.binds]
+            )
+            for e in entries
+        ]
+
+    def share(self, others: list[PendingPoint]) -> None:
+        """The other planners' pending suggestions now (in place of those shared before)."""
+        self._shared = [
+            (dict(p.x), tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in p.binds))
+            for p in others
+        ]
+
     def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
         """What the service's `suggest` would answer to this planner alone. `stored`: the last
         poster batch the service has taken in (its points are in a fetched model)."""
@@ -205,13 +246,16 @@ class LocalSurrogates:
         stale = [t for t in type_ids if self._stale(t, rollout, stored)]
         if stale:
             self._refresh(stale, rollout, stored)
+        shared = in_request_terms(self._shared, request.constraints) if self._shared else []
         answer = suggest_point(
             self,
             SuggestRequest.from_json(request.model_dump()),
             self._pending,
             key=PENDING_KEY,
             config=self._config,
+            shared=shared,
         )
+        self.shared_used += len(shared)
         out = answer.to_json()
         out["method"] = f"{answer.method}-local"
         return SuggestOut.model_validate(out)

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 from client.errors import BadRequest
 from client.models import (
+    MAX_PENDING_REPORT,
     MAX_WATCHED_TYPES,
     Constraint,
     Graph,
@@ -38,7 +39,7 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph
-from planner.knowledge.live import LiveFeed
+from planner.knowledge.live import LiveFeed, PendingExchange
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -94,6 +95,7 @@ class KnowledgeStats:
     prematched: int = 0
     live_points: int = 0  # other planners' points taken in during the run
     live_types: int = 0  # types other planners created during the run, activated from them
+    pending_shared: int = 0  # other planners' pending suggestions local ones were kept from
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -185,6 +187,17 @@ class KnowledgeSession:
                 background=background,
             )
             if live and self.local is not None and hasattr(client, "points_since")
+            else None
+        )
+        self.shared = (
+            PendingExchange(
+                lambda served, ids: client.exchange_pending(kb, self.run, served, ids).pending,
+                every_rollouts=self.config.live_every_rollouts,
+                background=background,
+            )
+            if self.live is not None
+            and self.config.live_pending
+            and hasattr(client, "exchange_pending")
             else None
         )
         self._unmatched: dict[Key, FailureGraph] = {}
@@ -351,6 +364,24 @@ class KnowledgeSession:
                 self.stats.live_types += 1
             created = MatchResult(type_id=type_id, exists=True, n_points=born[type_id])
             self._activate(key, self._graphs[key], created)
+        self._share_pending(rollout)
+
+    def _share_pending(self, rollout: int) -> None:
+        """Report this run's pending suggestions; take in the other runs' that came back."""
+        if self.shared is None or self.local is None:
+            return
+        local = self.local
+        try:
+            others = self.shared.tick(
+                rollout,
+                lambda: local.served(MAX_PENDING_REPORT),
+                sorted(self._types)[:MAX_WATCHED_TYPES],
+            )
+        except Exception as exc:  # a knowledge-base outage must not stop the search
+            self.stats.event(f"sharing pending suggestions failed: {exc}")
+            return
+        if others is not None:
+            self.local.share(others)
 
     def _wait_for_fits(self, type_ids: set[str]) -> None:
         """Block until the service has fitted every point of these types (deterministic mode):
@@ -478,8 +509,14 @@ class KnowledgeSession:
         self.poster.close()
         if self.live is not None:
             self.live.close()
+        if self.shared is not None:
+            try:
+                self.shared.close()
+            except Exception as exc:  # its entries expire in the service anyway
+                self.stats.event(f"withdrawing pending suggestions failed: {exc}")
         if self.local is not None:
             self.local.close()
+            self.stats.pending_shared = self.local.shared_used
         self.stats.kb_parts["close"] = time.perf_counter() - started
 
     @property

@@ -6,7 +6,16 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request
 
-from client.models import ModelsIn, ModelsOut, PredictIn, PredictOut, SuggestIn, SuggestOut
+from client.models import (
+    ModelsIn,
+    ModelsOut,
+    PendingIn,
+    PendingOut,
+    PredictIn,
+    PredictOut,
+    SuggestIn,
+    SuggestOut,
+)
 from server.api.responses import BODY, IN_KB, errors
 from server.errors import Unavailable
 from server.surrogates import service
@@ -37,6 +46,13 @@ def models(kb: str, body: ModelsIn, engine: EngineDep) -> ModelsOut:
     """Each type's current predictor, for MPF in the caller's own process; types whose
     version the caller already holds (`known`) are left out."""
     return service.models(engine, kb, body)
+
+
+@router.post("/pending", responses=BODY)
+def pending(kb: str, body: PendingIn, engine: EngineDep) -> PendingOut:
+    """Report the caller's suggestions not answered yet (a planner suggesting in its own
+    process); the other planners' pending suggestions of the types asked for come back."""
+    return service.exchange_pending(engine, kb, body)
 
 
 @router.post("/types/{type_id}/predict", responses=BODY)

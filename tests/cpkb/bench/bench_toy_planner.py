@@ -88,7 +88,7 @@ TOY_GRAPH = {
 
 def toy_run_with_kb(task: str, method: str, seed: int, **kwargs: object) -> dict[str, object]:
     """`toy_run`, plus: note how many points the scenario's knowledge base holds at the start,
-    then post one point to it (so a KB shared between scenarios would show)."""
+    then post one point to it (so a KB shared between scenarios would show; `points_posted`)."""
     from client import CpkbClient
 
     with CpkbClient(str(kwargs["kb_url"])) as client:
@@ -97,4 +97,4 @@ def toy_run_with_kb(task: str, method: str, seed: int, **kwargs: object) -> dict
             str(kwargs["kb"]), [{"graph": TOY_GRAPH, "x": {"#x": [0.5]}, "feasible": False}]
         )
     result = toy_run(task, method, seed, **kwargs)  # type: ignore[arg-type]
-    return {**result, "kb_points_before": points_before}
+    return {**result, "kb_points_before": points_before, "points_posted": 1}

@@ -25,6 +25,7 @@ from cpkb.cli import main
         (["--tasks", "nosuch", "--methods", "cp-bo"], "unknown task 'nosuch'"),
         (["--tasks", "missing/task.yaml", "--methods", "cp-bo"], "no such task file"),
         (["--tasks", "analytic:deskP", "--methods", "cp-bo-transfer"], "no predecessor tasks"),
+        (["--tasks", "desk,pack", "--methods", "cp-bo", "--mixed"], "--mixed needs --concurrent"),
     ],
 )
 def test_bad_arguments_are_one_line_errors(
