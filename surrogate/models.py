@@ -41,9 +41,17 @@ NEIGHBOURS = 8  # without a last fit: whether most of these have the other label
 
 
 class FeasibilityPredictor(Protocol):
-    """Anything that maps GP inputs `(n, D)` to P(feasible) `(n,)`."""
+    """Anything that maps GP inputs `(n, D)` to P(feasible) `(n,)`, and says how unsure it is.
+
+    `uncertainty` is the posterior standard deviation of the latent function relative to its
+    prior one, in [0, 1]: 1 where no data bears on the point (P(feasible) there is the model's
+    extrapolation), near 0 where data pins it down. One scale for every kind, so that a picture
+    can mark the unsure regions of any model with one threshold.
+    """
 
     def proba(self, z: np.ndarray) -> np.ndarray: ...
+
+    def uncertainty(self, z: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,13 @@ class PriorPredictor:
         ell = self.lengthscale
         return 0.5 + self.weight * (_reach(z, self.feasible, ell) - _reach(z, self.infeasible, ell))
 
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        """sqrt(1 - k^2) for the largest similarity k to any point: the posterior sd of a
+        unit-variance GP with the prior's kernel, given the nearest point alone (noise-free).
+        Given all points it could only be lower, so this bound is 1 far from every point."""
+        points = np.vstack([self.feasible, self.infeasible])
+        return _unexplained(_reach(z, points, self.lengthscale))
+
 
 def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     """`(n,)` the largest squared-exponential similarity of each row of `z` to `points`, with
@@ -73,6 +88,10 @@ def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     ell2 = (lengthscale**2) * z.shape[1]
     d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
     return np.exp(-0.5 * d2 / ell2).max(axis=1)
+
+
+def _unexplained(reach: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.clip(1.0 - reach**2, 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -94,6 +113,13 @@ class RecentPoints:
         down = self.weight * _reach(z, self.infeasible, self.lengthscale)
         return p + (1.0 - p) * up * (1.0 - down) - p * down * (1.0 - up)
 
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        """The fit's, lowered next to the new points as the prior's bound has it (with this
+        wrapper's reach): more data can only lower a GP's posterior variance."""
+        points = np.vstack([self.feasible, self.infeasible])
+        near = _unexplained(_reach(z, points, self.lengthscale))
+        return np.minimum(self.base.uncertainty(z), near)
+
 
 @dataclass(frozen=True)
 class UnseenChoices:
@@ -106,13 +132,23 @@ class UnseenChoices:
     prior: FeasibilityPredictor
     seen: tuple[tuple[slice, np.ndarray], ...]  # per categorical: its columns, the seen rows (k, w)
 
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        p = self.base.proba(z)
+    def _unseen(self, z: np.ndarray) -> np.ndarray:
         unseen = np.zeros(len(z), dtype=bool)
         for columns, rows in self.seen:
             same = np.abs(z[:, None, columns] - rows[None, :, :]).max(axis=-1) < 1e-9
             unseen |= ~same.any(axis=1)
+        return unseen
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        p = self.base.proba(z)
+        unseen = self._unseen(z)
         return np.where(unseen, self.prior.proba(z), p) if unseen.any() else p
+
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        """The prior's where it answers (an untried choice), the fit's elsewhere."""
+        unseen = self._unseen(z)
+        base = self.base.uncertainty(z)
+        return np.where(unseen, self.prior.uncertainty(z), base) if unseen.any() else base
 
 
 @dataclass(frozen=True)
@@ -136,6 +172,12 @@ class VGPPredictor:
     def proba(self, z: np.ndarray) -> np.ndarray:
         mean, var = self.latent(z)
         return ndtr(mean / np.sqrt(1.0 + var))
+
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        """The latent posterior sd over the prior's (outputscale): 1 away from the inducing
+        points, lower where the variational posterior has learnt from data."""
+        _, var = self.latent(z)
+        return np.sqrt(np.clip(var / (self.outputscale + JITTER), 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -171,6 +213,12 @@ class LabelRegressionPredictor:
     def proba(self, z: np.ndarray) -> np.ndarray:
         mean, std = self.regression.predict(z)
         return ndtr(mean / std)
+
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        """The latent posterior sd over the prior's (the label scale is fixed at 1 here)."""
+        r = self.regression
+        _, std = r.predict(z)
+        return np.clip(std / (r.y_scale * np.sqrt(r.outputscale)), 0.0, 1.0)
 
 
 @dataclass

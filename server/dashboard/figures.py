@@ -1,6 +1,6 @@
 """A type's pictures (heat map, slices, history) drawn from one read of what they need: the
-type's space, the fit's lengthscales, its latest points, the surrogate's predict and the slice
-the other dimensions are held at."""
+type's space, the fit's lengthscales, its latest points, the surrogate's predict and
+uncertainty, and the slice the other dimensions are held at."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from server.dashboard import views
 from server.dashboard.heatmap import (
     Predict,
     Slice,
+    Unsure,
     choose_slice,
     continuous_dims,
     render_heatmap_svg,
@@ -22,7 +23,8 @@ from server.db import Store
 from server.hooks import ServiceHooks
 from server.services import browse, types
 
-# The surrogate engine's in-process predict: (kb, type_id, decision values) -> P(feasible).
+# The surrogate engine's in-process predict: (kb, type_id, decision values) -> P(feasible);
+# its uncertainty has the same form (-> latent posterior sd over the prior's).
 EnginePredict = Callable[[str, str, list[dict[str, Any]]], Any]
 
 
@@ -33,10 +35,12 @@ class Inputs:
     observed: list[tuple[dict[str, Any], bool]]
     predict: Predict | None
     held: Slice
+    unsure: Unsure | None = None
 
 
 def predictor(engine: EnginePredict | None, kb: str, type_id: str) -> Predict | None:
-    """One type's predict, or None where no engine is installed (no surrogate yet)."""
+    """One type's predict (or uncertainty), None where no engine is installed (no surrogate
+    yet)."""
     if engine is None:
         return None
 
@@ -47,7 +51,12 @@ def predictor(engine: EnginePredict | None, kb: str, type_id: str) -> Predict | 
 
 
 def inputs(
-    store: Store, hooks: ServiceHooks, engine: EnginePredict | None, kb: str, type_id: str
+    store: Store,
+    hooks: ServiceHooks,
+    engine: EnginePredict | None,
+    kb: str,
+    type_id: str,
+    uncertainty: EnginePredict | None = None,
 ) -> Inputs:
     detail = types.get_type(store, kb, type_id)
     state = views.surrogate_state(hooks, kb, type_id) or {}
@@ -58,12 +67,15 @@ def inputs(
         observed=observed,
         predict=predictor(engine, kb, type_id),
         held=choose_slice(detail.space, observed),
+        unsure=predictor(uncertainty, kb, type_id),
     )
 
 
 def heatmap(f: Inputs, x: str | None, y: str | None, n: int) -> str:
     dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
-    return render_heatmap_svg(f.space, dx, dy, f.predict, f.observed, n=n, held=f.held)
+    return render_heatmap_svg(
+        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, unsure=f.unsure
+    )
 
 
 def slices(f: Inputs) -> str:

@@ -6,6 +6,11 @@ components is one dimension, named `label[i]`. The two chosen dimensions span th
 other continuous component is held at a stated slice (`Slice`: the latest infeasible point, so
 that the map passes through a known failure), and each panel fixes one combination of the
 categorical choices. Every panel is drawn; its point count is in its title.
+
+Where the model is unsure, because no data bears on a cell (its latent posterior sd is more than
+`UNSURE_SD` of the prior's: `FeasibilityPredictor.uncertainty`), the cell is washed out and
+hatched, and the legend says why: its colour there is the model's extrapolation, not knowledge.
+The colour itself stays P(feasible) on the cividis scale.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ from client.models import CategoricalDomain, ContinuousDomain
 
 Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]
+# Decision values -> the model's latent posterior sd over its prior sd, in [0, 1].
+Unsure = Callable[[list[dict[str, Value]]], list[float]]
 
 _PANEL_PX = 180.0  # a 2-d panel's side
 _STRIP_PX = 40.0  # the height of a 1-d strip, the side of a choice-only cell
@@ -30,6 +37,8 @@ _CELL_PX = 80.0  # the width of a choice-only cell, room for its counts
 _COUNT_PX = 22.0
 _LEGEND_W = 480.0
 FEW_POINTS = 5  # a panel with fewer points says so
+UNSURE_SD = math.sqrt(0.5)  # unsure where the data explains less than half the prior variance
+HATCH_ID = "cp-unsure-hatch"
 FONT = "system-ui, -apple-system, 'Segoe UI', Helvetica, Arial, sans-serif"
 _PAD_LEFT = 46.0
 _PAD_TOP = 30.0
@@ -176,10 +185,12 @@ def render_heatmap_svg(
     observed: Sequence[tuple[dict[str, Value], bool]] = (),
     n: int = 20,
     held: Slice | None = None,
+    unsure: Unsure | None = None,
 ) -> str:
     """Panels side by side (wrapping after four), one predict call for all of them. With no
     `predict` (no surrogate yet) the cells are grey and only the stored points show. A panel
-    without points is faded and says so: its colours are the model's extrapolation."""
+    without points is faded and says so: its colours are the model's extrapolation. With
+    `unsure` (the model's uncertainty at the same cells) the unsure cells are hatched."""
     panels = panels_of(space)
     held = held or Slice(mid_range(space), "mid-range")
     if dx is None:
@@ -188,8 +199,9 @@ def render_heatmap_svg(
     per_panel = n * rows
     queries = [p for panel in panels for p in grid_points(space, dx, dy, panel, n, held.values)]
     probs = predict(queries) if predict is not None else [math.nan] * len(queries)
-    if len(probs) != len(queries):
-        raise ValueError("predict answered a different number of probabilities")
+    sds = unsure(queries) if predict is not None and unsure is not None else None
+    if len(probs) != len(queries) or (sds is not None and len(sds) != len(queries)):
+        raise ValueError("the model answered a different number of values than asked")
     w = _PANEL_PX if dx is not None else _CELL_PX
     h = _PANEL_PX if dy is not None else _STRIP_PX
     cell_w, cell_h = w / n, h / rows
@@ -202,12 +214,14 @@ def render_heatmap_svg(
         f"other dimensions held at {held.origin}: {_slice_text(held.values)}",
         width=max(30, int((width - 20) / _SMALL_CHAR_W)),
     )
-    height = legend_y + 30 + 14 * len(slice_lines)
+    height = legend_y + 30 + 14 * len(slice_lines) + (_UNSURE_ROW if sds is not None else 0)
     out = [
         f'<svg class="cp-heatmap" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
         f'aria-label="P(feasible) heat map" font-family="{FONT}">'
     ]
+    if sds is not None:
+        out.append(_HATCH)
     for k, panel in enumerate(panels):
         ox = (k % cols) * panel_w + _PAD_LEFT
         oy = (k // cols) * panel_h + _PAD_TOP
@@ -225,15 +239,13 @@ def render_heatmap_svg(
             f'{escape(title)} <tspan fill="#6b7280">({note})</tspan></text>'
         )
         chunk = probs[k * per_panel : (k + 1) * per_panel]
+        sd_chunk = sds[k * per_panel : (k + 1) * per_panel] if sds is not None else None
         for idx, p in enumerate(chunk):
             j, i = divmod(idx, n)
-            tip = "no surrogate yet" if math.isnan(p) else f"p={p:.2f}"
-            data_p = "" if math.isnan(p) else f' data-p="{p:.3f}"'
-            out.append(
-                f'<rect class="cp-cell" x="{ox + i * cell_w:.2f}" y="{oy + j * cell_h:.2f}" '
-                f'width="{cell_w + 0.3:.2f}" height="{cell_h + 0.3:.2f}" fill="{_colour(p)}"'
-                f"{data_p}><title>{tip}</title></rect>"
-            )
+            sd = sd_chunk[idx] if sd_chunk is not None else None
+            out.append(_cell(ox + i * cell_w, oy + j * cell_h, cell_w, cell_h, p, sd))
+        if sd_chunk is not None:
+            out.append(_unsure_overlay(ox, oy, cell_w, cell_h, n, sd_chunk))
         if dx is not None:
             out.append(_axes(ox, oy, w, h, dx, dy))
             out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed))
@@ -244,12 +256,61 @@ def render_heatmap_svg(
                 f'fill="#111827">{len(mine) - n_bad} ✓ · {n_bad} ✗</text>'
             )
         out.append("</g>")
-    out.append(_legend(legend_y, slice_lines))
+    out.append(_legend(legend_y, slice_lines, sds is not None))
     out.append("</svg>")
     return "".join(out)
 
 
-def _legend(y: float, slice_lines: list[str]) -> str:
+def _cell(x: float, y: float, w: float, h: float, p: float, sd: float | None) -> str:
+    """One grid cell, coloured by `p`; its tooltip and data attributes carry p and the sd."""
+    tip = "no surrogate yet" if math.isnan(p) else f"p={p:.2f}"
+    data = "" if math.isnan(p) else f' data-p="{p:.3f}"'
+    if sd is not None and not math.isnan(p):
+        data += f' data-sd="{sd:.3f}"'
+        if sd > UNSURE_SD:
+            data += ' data-unsure="1"'
+            tip += f", unsure: little data nearby (latent sd {sd:.2f} of the prior's)"
+    return (
+        f'<rect class="cp-cell" x="{x:.2f}" y="{y:.2f}" width="{w + 0.3:.2f}" '
+        f'height="{h + 0.3:.2f}" fill="{_colour(p)}"{data}><title>{tip}</title></rect>'
+    )
+
+
+# A white wash under dark diagonal lines: lighter on the dark end of cividis, striped on its
+# bright end, so that an unsure cell stands out at any P(feasible) and in grey.
+_HATCH = (
+    f'<defs><pattern id="{HATCH_ID}" width="6" height="6" patternUnits="userSpaceOnUse" '
+    'patternTransform="rotate(45)"><rect width="6" height="6" fill="#ffffff" '
+    'fill-opacity="0.4"/><line x1="0" y1="0" x2="0" y2="6" stroke="#111827" '
+    'stroke-width="1.6" stroke-opacity="0.55"/></pattern></defs>'
+)
+_UNSURE_ROW = 18.0
+
+
+def _unsure_overlay(
+    ox: float, oy: float, cell_w: float, cell_h: float, n: int, sds: Sequence[float]
+) -> str:
+    """The hatch over the unsure cells, one rect per run of them along a row; it lets the
+    pointer through to the cells' tooltips."""
+    runs: list[str] = []
+    for j in range(len(sds) // n):
+        i = 0
+        while i < n:
+            if sds[j * n + i] <= UNSURE_SD or math.isnan(sds[j * n + i]):
+                i += 1
+                continue
+            start = i
+            while i < n and sds[j * n + i] > UNSURE_SD:
+                i += 1
+            runs.append(
+                f'<rect class="cp-unsure" x="{ox + start * cell_w:.2f}" y="{oy + j * cell_h:.2f}" '
+                f'width="{(i - start) * cell_w + 0.3:.2f}" height="{cell_h + 0.3:.2f}" '
+                f'fill="url(#{HATCH_ID})" pointer-events="none"/>'
+            )
+    return "".join(runs)
+
+
+def _legend(y: float, slice_lines: list[str], with_unsure: bool) -> str:
     swatches = "".join(
         f'<rect x="{96 + 12 * k}" y="{y}" width="12" height="10" fill="{_colour(k / 10)}"/>'
         for k in range(11)
@@ -259,6 +320,18 @@ def _legend(y: float, slice_lines: list[str]) -> str:
         f'<tspan x="10" dy="{0 if k == 0 else 14}">{escape(line)}</tspan>'
         for k, line in enumerate(slice_lines)
     )
+    unsure = ""
+    if with_unsure:
+        row = y + _UNSURE_ROW
+        # The hatch over a mid-scale swatch, as it shows over the map.
+        unsure = (
+            f'<g class="cp-legend-unsure"><rect x="10" y="{row}" width="24" height="10" '
+            f'fill="{_colour(0.5)}"/><rect x="10" y="{row}" width="24" height="10" '
+            f'fill="url(#{HATCH_ID})" stroke="#374151" stroke-width="0.5"/>'
+            f'<text x="40" y="{row + 9}">unsure: little data nearby '
+            f"(latent sd over {UNSURE_SD:.0%} of the prior's)</text></g>"
+        )
+    slice_y = y + 28 + (_UNSURE_ROW if with_unsure else 0)
     return (
         f'<g class="cp-legend" font-size="11" fill="#374151">'
         f'<text x="10" y="{y + 9}">P(feasible): 0</text>{swatches}'
@@ -268,7 +341,7 @@ def _legend(y: float, slice_lines: list[str]) -> str:
         f'<path d="{_cross(350, y + 5)}" stroke="#ffffff" stroke-width="3.2"/>'
         f'<path d="{_cross(350, y + 5)}" stroke="#111827" stroke-width="1.6"/>'
         f'<text x="{358}" y="{y + 9}">infeasible point</text>'
-        f'<text class="cp-slice" x="10" y="{y + 28}">{lines}</text></g>'
+        f'{unsure}<text class="cp-slice" x="10" y="{slice_y}">{lines}</text></g>'
     )
 
 

@@ -229,7 +229,9 @@ def static(name: str) -> Response:
 
 def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
     store, hooks = _state(request)
-    return figures.inputs(store, hooks, getattr(request.app.state, "predict", None), kb, type_id)
+    state = request.app.state
+    predict, uncertainty = getattr(state, "predict", None), getattr(state, "uncertainty", None)
+    return figures.inputs(store, hooks, predict, kb, type_id, uncertainty)
 
 
 def _figure_key(data: dict[str, Any]) -> str:

@@ -292,6 +292,14 @@ class SurrogateEngine:
         z = SpaceEncoder(handle.space).encode_points(xs)
         return [float(p) for p in handle.predictor.proba(z)]
 
+    def uncertainty(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
+        """For the dashboard, beside `predict` (not on the wire): how unsure the type's current
+        model is at `xs`, its latent posterior sd over the prior's
+        (`FeasibilityPredictor.uncertainty`)."""
+        handle = self.model(kb, type_id)
+        z = SpaceEncoder(handle.space).encode_points(xs)
+        return [float(u) for u in handle.predictor.uncertainty(z)]
+
     def state(self, kb: str, type_id: str) -> SurrogateState | None:
         with self._cond:
             entry = self._entries.get((kb, type_id))
