@@ -25,3 +25,31 @@ def no_sideways_scroll(page: Any) -> bool:
     return page.evaluate(
         "document.scrollingElement.scrollWidth <= document.scrollingElement.clientWidth"
     )
+
+
+def clipped(page: Any) -> list[str]:
+    """Panels whose content is wider than they are, and SVG texts outside their picture."""
+    return page.evaluate(
+        """() => {
+        const out = [];
+        for (const el of document.querySelectorAll("section, .figure, main")) {
+          if (el.scrollWidth > el.clientWidth + 1 && !el.classList.contains("scroll")
+              && getComputedStyle(el).overflowX !== "auto")
+            out.push("overflow " + (el.id || el.className || el.tagName));
+        }
+        for (const svg of document.querySelectorAll(".figure svg")) {
+          const box = svg.getBoundingClientRect();
+          for (const t of svg.querySelectorAll("text")) {
+            const r = t.getBoundingClientRect();
+            if (r.width === 0) continue;
+            if (r.left < box.left - 1 || r.right > box.right + 1 ||
+                r.top < box.top - 1 || r.bottom > box.bottom + 1)
+              out.push("text outside " + svg.getAttribute("class") + ": " + t.textContent);
+          }
+          const parent = svg.parentElement.getBoundingClientRect();
+          if (box.right > parent.right + 1)
+            out.push("wider than its panel: " + svg.className.baseVal);
+        }
+        return out;
+    }"""
+    )

@@ -11,7 +11,12 @@ import pytest
 
 from client import CpkbClient
 from cpkb.embedded import embedded_service
-from tests.server.dashboard.browser_support import LIVE_TIMEOUT_MS, launch, no_sideways_scroll
+from tests.server.dashboard.browser_support import (
+    LIVE_TIMEOUT_MS,
+    clipped,
+    launch,
+    no_sideways_scroll,
+)
 from tests.service_support import make_graph, make_point
 from tests.wait_support import wait_until
 
@@ -33,7 +38,7 @@ def _boundary_points(graph: dict[str, Any], n: int) -> list[dict[str, Any]]:
 def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
     chromium: str, sqlite_url: str
 ) -> None:
-    from playwright.sync_api import sync_playwright
+    from playwright.sync_api import expect, sync_playwright
 
     cube = {"kind": "continuous", "low": [0.0, 0.0, 0.0], "high": [1.0, 1.0, 1.0]}
     graph = make_graph("Inv-kin", ("box1",), pose_domain=cube)
@@ -62,6 +67,22 @@ def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
                 assert max(probs) > 0.7 and min(probs) < 0.3
                 expect_text = page.locator("#heatmap .cp-slice").text_content() or ""
                 assert "latest infeasible point" in expect_text
+
+                # Uncertainty shows: the choices no point holds are hatched all over, the one
+                # the points hold is not, and the legend says what the hatch means.
+                unsure = page.eval_on_selector_all(
+                    "#heatmap g.cp-heatmap-panel",
+                    """panels => Object.fromEntries(panels.map(g => [g.dataset.panel, [
+                        g.querySelectorAll("rect.cp-cell[data-unsure]").length,
+                        g.querySelectorAll("rect.cp-cell").length,
+                        g.querySelectorAll("rect.cp-unsure").length]]))""",
+                )
+                held = unsure.pop("#dir=top")
+                assert held[0] < held[1]
+                assert unsure and all(u == n and h > 0 for u, n, h in unsure.values())
+                expect(page.locator("#heatmap .cp-legend-unsure")).to_be_visible()
+                expect(page.locator("#heatmap .cp-legend-unsure")).to_contain_text("unsure")
+                assert clipped(page) == []
             finally:
                 browser.close()
 

@@ -11,7 +11,12 @@ import pytest
 
 from client import CpkbClient
 from cpkb.embedded import embedded_service
-from tests.server.dashboard.browser_support import LIVE_TIMEOUT_MS, launch, no_sideways_scroll
+from tests.server.dashboard.browser_support import (
+    LIVE_TIMEOUT_MS,
+    clipped,
+    launch,
+    no_sideways_scroll,
+)
 from tests.service_support import make_graph, make_point
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -118,34 +123,6 @@ def test_points_filters_pages_and_live_rows(browser: Any, service: dict[str, Any
     page.close()
 
 
-def _clipped(page: Any) -> list[str]:
-    """Panels whose content is wider than they are, and SVG texts outside their picture."""
-    return page.evaluate(
-        """() => {
-        const out = [];
-        for (const el of document.querySelectorAll("section, .figure, main")) {
-          if (el.scrollWidth > el.clientWidth + 1 && !el.classList.contains("scroll")
-              && getComputedStyle(el).overflowX !== "auto")
-            out.push("overflow " + (el.id || el.className || el.tagName));
-        }
-        for (const svg of document.querySelectorAll(".figure svg")) {
-          const box = svg.getBoundingClientRect();
-          for (const t of svg.querySelectorAll("text")) {
-            const r = t.getBoundingClientRect();
-            if (r.width === 0) continue;
-            if (r.left < box.left - 1 || r.right > box.right + 1 ||
-                r.top < box.top - 1 || r.bottom > box.bottom + 1)
-              out.push("text outside " + svg.getAttribute("class") + ": " + t.textContent);
-          }
-          const parent = svg.parentElement.getBoundingClientRect();
-          if (box.right > parent.right + 1)
-            out.push("wider than its panel: " + svg.className.baseVal);
-        }
-        return out;
-    }"""
-    )
-
-
 @pytest.mark.parametrize("width", [1200, 400])
 def test_no_panel_is_clipped(browser: Any, service: dict[str, Any], width: int) -> None:
     page = browser.new_page(viewport={"width": width, "height": 900})
@@ -156,7 +133,7 @@ def test_no_panel_is_clipped(browser: Any, service: dict[str, Any], width: int) 
     ):
         page.goto(service["url"] + path)
         page.wait_for_load_state("load")
-        assert _clipped(page) == [], path
+        assert clipped(page) == [], path
         assert no_sideways_scroll(page), path
     page.close()
 

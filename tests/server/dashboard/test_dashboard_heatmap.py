@@ -5,11 +5,14 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 
+import numpy as np
 from pydantic import TypeAdapter
 
 from client.models import Domain
 from server.dashboard.heatmap import (
+    HATCH_ID,
     NO_MODEL_COLOUR,
+    UNSURE_SD,
     _colour,
     choose_slice,
     continuous_dims,
@@ -148,3 +151,77 @@ def test_the_scale_is_not_red_to_green() -> None:
     red_low = int(low[1:3], 16) > int(low[5:7], 16)  # RdYlGn starts red
     green_high = int(high[3:5], 16) > max(int(high[1:3], 16), int(high[5:7], 16)) + 40
     assert not red_low and not green_high
+
+
+def test_cells_far_from_every_point_are_marked_unsure_and_cells_among_them_are_not() -> None:
+    """A real gpytorch fit of a type whose points all lie in one corner of one choice."""
+    from surrogate.domains import space_from_json
+    from surrogate.encoding import SpaceEncoder
+    from surrogate.sources import InMemoryModels
+
+    raw = {
+        "#dir": {"kind": "categorical", "choices": ["front", "top"]},
+        "#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]},
+    }
+    space = TypeAdapter(dict[str, Domain]).validate_python(raw)
+    rng = np.random.default_rng(1)
+    observed = []
+    for _ in range(40):
+        pose = (rng.random(2) * 0.4).tolist()
+        observed.append(({"#dir": "top", "#pose": pose}, pose[0] > 0.2))
+    models = InMemoryModels()
+    models.add("corner", space_from_json(raw), observed)
+    model = models.model("corner")
+    encoder = SpaceEncoder(model.space)
+
+    def predict(xs: list[dict]) -> list[float]:
+        return model.predictor.proba(encoder.encode_points(xs)).tolist()
+
+    def unsure(xs: list[dict]) -> list[float]:
+        return model.predictor.uncertainty(encoder.encode_points(xs)).tolist()
+
+    dx, dy = continuous_dims(space)
+    held = choose_slice(space, observed)
+    root = ET.fromstring(
+        render_heatmap_svg(space, dx, dy, predict, observed, n=10, held=held, unsure=unsure)
+    )
+    panels = {g.get("data-panel"): g for g in root.iter(f"{SVG_NS}g") if g.get("data-panel")}
+
+    def cells(panel: str) -> list[tuple[float, float, ET.Element]]:
+        """(#pose[0], #pose[1], rect) of a panel's cells, read back from the grid."""
+        rects = [r for r in panels[panel].iter(f"{SVG_NS}rect") if r.get("class") == "cp-cell"]
+        x0, y0 = min(float(r.get("x")) for r in rects), min(float(r.get("y")) for r in rects)
+        return [
+            (
+                (float(r.get("x")) - x0) / 180 + 0.05,
+                1 - ((float(r.get("y")) - y0) / 180 + 0.05),
+                r,
+            )
+            for r in rects
+        ]
+
+    top = cells("#dir=top")
+    far = [r for px, _, r in top if px > 0.6]
+    among = [r for px, py, r in top if px < 0.35 and py < 0.35]
+    assert far and among
+    assert all(r.get("data-unsure") == "1" for r in far)
+    assert not any(r.get("data-unsure") for r in among)
+    assert all(float(r.get("data-sd")) < UNSURE_SD for r in among)
+    assert "unsure" in far[0].find(f"{SVG_NS}title").text
+    # No point holds #dir=front: the stated prior answers there, unsure everywhere.
+    assert all(r.get("data-unsure") == "1" for _, _, r in cells("#dir=front"))
+    # The hatch covers the unsure cells (a run of them per row) and lets the pointer through.
+    hatches = [r for r in panels["#dir=top"].iter(f"{SVG_NS}rect") if r.get("class") == "cp-unsure"]
+    covered = sum(round(float(r.get("width")) / 18) for r in hatches)
+    assert covered == sum(1 for _, _, r in top if r.get("data-unsure"))
+    assert {r.get("pointer-events") for r in hatches} == {"none"}
+    assert {r.get("fill") for r in hatches} == {f"url(#{HATCH_ID})"}
+    assert root.find(f".//{SVG_NS}pattern[@id='{HATCH_ID}']") is not None
+    legend = [g for g in root.iter(f"{SVG_NS}g") if g.get("class") == "cp-legend-unsure"]
+    assert len(legend) == 1 and "unsure" in "".join(legend[0].itertext())
+
+
+def test_without_an_uncertainty_nothing_is_hatched() -> None:
+    dx, dy, _ = continuous_dims(SPACE)
+    svg = render_heatmap_svg(SPACE, dx, dy, _right_half_feasible, [], n=4)
+    assert "cp-unsure" not in svg and HATCH_ID not in svg and "data-sd" not in svg
