@@ -26,6 +26,7 @@ import gpytorch
 import numpy as np
 import torch
 from imblearn.over_sampling import SMOTE
+from scipy.spatial import cKDTree
 from scipy.special import ndtr
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
@@ -77,7 +78,7 @@ class PriorPredictor:
         unit-variance GP with the prior's kernel, given the nearest point alone (noise-free).
         Given all points it could only be lower, so this bound is 1 far from every point."""
         points = np.vstack([self.feasible, self.infeasible])
-        return _unexplained(_reach(z, points, self.lengthscale))
+        return _unexplained(_nearest_reach(z, points, self.lengthscale))
 
 
 def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
@@ -88,6 +89,15 @@ def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     ell2 = (lengthscale**2) * z.shape[1]
     d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
     return np.exp(-0.5 * d2 / ell2).max(axis=1)
+
+
+def _nearest_reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
+    """`_reach` through a k-d tree: the largest similarity is the nearest point's, and a tree
+    finds it without the (n, points, D) array of distances a large type's prior would need."""
+    if len(points) == 0:
+        return np.zeros(len(z))
+    distance, _ = cKDTree(points).query(z)
+    return np.exp(-0.5 * distance**2 / ((lengthscale**2) * z.shape[1]))
 
 
 def _unexplained(reach: np.ndarray) -> np.ndarray:
@@ -117,7 +127,7 @@ class RecentPoints:
         """The fit's, lowered next to the new points as the prior's bound has it (with this
         wrapper's reach): more data can only lower a GP's posterior variance."""
         points = np.vstack([self.feasible, self.infeasible])
-        near = _unexplained(_reach(z, points, self.lengthscale))
+        near = _unexplained(_nearest_reach(z, points, self.lengthscale))
         return np.minimum(self.base.uncertainty(z), near)
 
 
@@ -139,16 +149,23 @@ class UnseenChoices:
             unseen |= ~same.any(axis=1)
         return unseen
 
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        p = self.base.proba(z)
+    def _answer(self, z: np.ndarray, of_base: Any, of_prior: Any) -> np.ndarray:
+        """`of_base(z)`, with `of_prior` answering for the rows of untried choices (asked of
+        those rows only: the prior's cost grows with the type's points)."""
+        values = of_base(z)
         unseen = self._unseen(z)
-        return np.where(unseen, self.prior.proba(z), p) if unseen.any() else p
+        if not unseen.any():
+            return values
+        values = np.array(values, dtype=float)
+        values[unseen] = of_prior(z[unseen])
+        return values
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        return self._answer(z, self.base.proba, self.prior.proba)
 
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
         """The prior's where it answers (an untried choice), the fit's elsewhere."""
-        unseen = self._unseen(z)
-        base = self.base.uncertainty(z)
-        return np.where(unseen, self.prior.uncertainty(z), base) if unseen.any() else base
+        return self._answer(z, self.base.uncertainty, self.prior.uncertainty)
 
 
 @dataclass(frozen=True)

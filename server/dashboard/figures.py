@@ -10,9 +10,9 @@ from typing import Any
 
 from server.dashboard import views
 from server.dashboard.heatmap import (
+    Judge,
     Predict,
     Slice,
-    Unsure,
     choose_slice,
     continuous_dims,
     render_heatmap_svg,
@@ -24,7 +24,7 @@ from server.hooks import ServiceHooks
 from server.services import browse, types
 
 # The surrogate engine's in-process predict: (kb, type_id, decision values) -> P(feasible);
-# its uncertainty has the same form (-> latent posterior sd over the prior's).
+# its predict_with_uncertainty has the same arguments (-> P(feasible), latent sd / prior sd).
 EnginePredict = Callable[[str, str, list[dict[str, Any]]], Any]
 
 
@@ -35,17 +35,28 @@ class Inputs:
     observed: list[tuple[dict[str, Any], bool]]
     predict: Predict | None
     held: Slice
-    unsure: Unsure | None = None
+    judge: Judge | None = None
 
 
 def predictor(engine: EnginePredict | None, kb: str, type_id: str) -> Predict | None:
-    """One type's predict (or uncertainty), None where no engine is installed (no surrogate
-    yet)."""
+    """One type's predict, None where no engine is installed (no surrogate yet)."""
     if engine is None:
         return None
 
     def run(xs: list[dict[str, Any]]) -> list[float]:
         return list(engine(kb, type_id, xs))
+
+    return run
+
+
+def judge_of(engine: EnginePredict | None, kb: str, type_id: str) -> Judge | None:
+    """One type's P(feasible) and uncertainty at once, None without an engine."""
+    if engine is None:
+        return None
+
+    def run(xs: list[dict[str, Any]]) -> tuple[list[float], list[float]]:
+        p, sd = engine(kb, type_id, xs)
+        return list(p), list(sd)
 
     return run
 
@@ -56,7 +67,7 @@ def inputs(
     engine: EnginePredict | None,
     kb: str,
     type_id: str,
-    uncertainty: EnginePredict | None = None,
+    judge: EnginePredict | None = None,
 ) -> Inputs:
     detail = types.get_type(store, kb, type_id)
     state = views.surrogate_state(hooks, kb, type_id) or {}
@@ -67,14 +78,14 @@ def inputs(
         observed=observed,
         predict=predictor(engine, kb, type_id),
         held=choose_slice(detail.space, observed),
-        unsure=predictor(uncertainty, kb, type_id),
+        judge=judge_of(judge, kb, type_id),
     )
 
 
 def heatmap(f: Inputs, x: str | None, y: str | None, n: int) -> str:
     dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
     return render_heatmap_svg(
-        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, unsure=f.unsure
+        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, judge=f.judge
     )
 
 

@@ -28,8 +28,8 @@ from client.models import CategoricalDomain, ContinuousDomain
 
 Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]
-# Decision values -> the model's latent posterior sd over its prior sd, in [0, 1].
-Unsure = Callable[[list[dict[str, Value]]], list[float]]
+# Decision values -> P(feasible) and the model's latent posterior sd over its prior sd, in [0, 1].
+Judge = Callable[[list[dict[str, Value]]], tuple[list[float], list[float]]]
 
 _PANEL_PX = 180.0  # a 2-d panel's side
 _STRIP_PX = 40.0  # the height of a 1-d strip, the side of a choice-only cell
@@ -185,12 +185,12 @@ def render_heatmap_svg(
     observed: Sequence[tuple[dict[str, Value], bool]] = (),
     n: int = 20,
     held: Slice | None = None,
-    unsure: Unsure | None = None,
+    judge: Judge | None = None,
 ) -> str:
     """Panels side by side (wrapping after four), one predict call for all of them. With no
     `predict` (no surrogate yet) the cells are grey and only the stored points show. A panel
-    without points is faded and says so: its colours are the model's extrapolation. With
-    `unsure` (the model's uncertainty at the same cells) the unsure cells are hatched."""
+    without points is faded and says so: its colours are the model's extrapolation. A `judge`
+    answers instead of `predict` with the model's uncertainty too: its unsure cells are hatched."""
     panels = panels_of(space)
     held = held or Slice(mid_range(space), "mid-range")
     if dx is None:
@@ -198,8 +198,11 @@ def render_heatmap_svg(
     rows = 1 if dy is None else n
     per_panel = n * rows
     queries = [p for panel in panels for p in grid_points(space, dx, dy, panel, n, held.values)]
-    probs = predict(queries) if predict is not None else [math.nan] * len(queries)
-    sds = unsure(queries) if predict is not None and unsure is not None else None
+    sds: list[float] | None = None
+    if judge is not None:
+        probs, sds = judge(queries)
+    else:
+        probs = predict(queries) if predict is not None else [math.nan] * len(queries)
     if len(probs) != len(queries) or (sds is not None and len(sds) != len(queries)):
         raise ValueError("the model answered a different number of values than asked")
     w = _PANEL_PX if dx is not None else _CELL_PX
@@ -266,10 +269,10 @@ def _cell(x: float, y: float, w: float, h: float, p: float, sd: float | None) ->
     tip = "no surrogate yet" if math.isnan(p) else f"p={p:.2f}"
     data = "" if math.isnan(p) else f' data-p="{p:.3f}"'
     if sd is not None and not math.isnan(p):
-        data += f' data-sd="{sd:.3f}"'
+        tip += f" · sd {sd:.2f}"
         if sd > UNSURE_SD:
             data += ' data-unsure="1"'
-            tip += f", unsure: little data nearby (latent sd {sd:.2f} of the prior's)"
+            tip += ": unsure"
     return (
         f'<rect class="cp-cell" x="{x:.2f}" y="{y:.2f}" width="{w + 0.3:.2f}" '
         f'height="{h + 0.3:.2f}" fill="{_colour(p)}"{data}><title>{tip}</title></rect>'

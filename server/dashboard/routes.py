@@ -230,8 +230,9 @@ def static(name: str) -> Response:
 def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
     store, hooks = _state(request)
     state = request.app.state
-    predict, uncertainty = getattr(state, "predict", None), getattr(state, "uncertainty", None)
-    return figures.inputs(store, hooks, predict, kb, type_id, uncertainty)
+    predict = getattr(state, "predict", None)
+    judge = getattr(state, "predict_with_uncertainty", None) if predict is not None else None
+    return figures.inputs(store, hooks, predict, kb, type_id, judge)
 
 
 def _figure_key(data: dict[str, Any]) -> str:

@@ -10,7 +10,8 @@ def install(app: FastAPI) -> None:
     """Create the engine from the app's settings and plug it into the service hooks:
     new points queue fits, type detail shows the surrogate state, the lifespan starts and
     stops the fit worker; `app.state.predict(kb, type_id, xs)` serves in-process callers and
-    `app.state.uncertainty` (same arguments) tells the dashboard where the model is unsure."""
+    `app.state.predict_with_uncertainty` (same arguments) also tells the dashboard where the
+    model is unsure."""
     from server.surrogates.engine import EngineConfig, SurrogateEngine
     from surrogate.optimize import OptimizerConfig
 
@@ -51,4 +52,4 @@ def install(app: FastAPI) -> None:
     hooks.on_shutdown.append(engine.stop)
     app.state.surrogates = engine
     app.state.predict = engine.predict
-    app.state.uncertainty = engine.uncertainty
+    app.state.predict_with_uncertainty = engine.predict_with_uncertainty

@@ -292,13 +292,16 @@ class SurrogateEngine:
         z = SpaceEncoder(handle.space).encode_points(xs)
         return [float(p) for p in handle.predictor.proba(z)]
 
-    def uncertainty(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
-        """For the dashboard, beside `predict` (not on the wire): how unsure the type's current
-        model is at `xs`, its latent posterior sd over the prior's
-        (`FeasibilityPredictor.uncertainty`)."""
+    def predict_with_uncertainty(
+        self, kb: str, type_id: str, xs: list[dict]
+    ) -> tuple[list[float], list[float]]:
+        """For the dashboard, beside `predict` (not on the wire): P(feasible) of `xs` and how
+        unsure the same model is there, its latent posterior sd over the prior's
+        (`FeasibilityPredictor.uncertainty`); one model and one encoding for both."""
         handle = self.model(kb, type_id)
         z = SpaceEncoder(handle.space).encode_points(xs)
-        return [float(u) for u in handle.predictor.uncertainty(z)]
+        p, sd = handle.predictor.proba(z), handle.predictor.uncertainty(z)
+        return [float(v) for v in p], [float(v) for v in sd]
 
     def state(self, kb: str, type_id: str) -> SurrogateState | None:
         with self._cond:

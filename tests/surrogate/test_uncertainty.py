@@ -9,6 +9,7 @@ from surrogate.models import (
     PriorPredictor,
     RecentPoints,
     UnseenChoices,
+    _reach,
     fit_classifier,
     fit_label_regression,
 )
@@ -44,6 +45,12 @@ def test_the_prior_is_unsure_by_its_distance_to_the_data() -> None:
     assert (np.diff(u) > 0).all()  # further away, more unsure
     empty = PriorPredictor(feasible=np.zeros((0, 2)), infeasible=np.zeros((0, 2)))
     assert (empty.uncertainty(probes) == 1.0).all()
+    # The nearest point found by a tree is the one a sweep over every point finds.
+    rng = np.random.default_rng(4)
+    many = PriorPredictor(feasible=rng.random((50, 3)), infeasible=rng.random((70, 3)))
+    grid = rng.random((200, 3))
+    swept = _reach(grid, np.vstack([many.feasible, many.infeasible]), many.lengthscale)
+    assert np.allclose(many.uncertainty(grid), np.sqrt(1 - swept**2), atol=1e-9)
 
 
 def test_new_points_make_a_fit_surer_next_to_them_only() -> None:

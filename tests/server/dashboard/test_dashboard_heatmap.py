@@ -174,16 +174,14 @@ def test_cells_far_from_every_point_are_marked_unsure_and_cells_among_them_are_n
     model = models.model("corner")
     encoder = SpaceEncoder(model.space)
 
-    def predict(xs: list[dict]) -> list[float]:
-        return model.predictor.proba(encoder.encode_points(xs)).tolist()
-
-    def unsure(xs: list[dict]) -> list[float]:
-        return model.predictor.uncertainty(encoder.encode_points(xs)).tolist()
+    def judge(xs: list[dict]) -> tuple[list[float], list[float]]:
+        z = encoder.encode_points(xs)
+        return model.predictor.proba(z).tolist(), model.predictor.uncertainty(z).tolist()
 
     dx, dy = continuous_dims(space)
     held = choose_slice(space, observed)
     root = ET.fromstring(
-        render_heatmap_svg(space, dx, dy, predict, observed, n=10, held=held, unsure=unsure)
+        render_heatmap_svg(space, dx, dy, None, observed, n=10, held=held, judge=judge)
     )
     panels = {g.get("data-panel"): g for g in root.iter(f"{SVG_NS}g") if g.get("data-panel")}
 
@@ -206,8 +204,9 @@ def test_cells_far_from_every_point_are_marked_unsure_and_cells_among_them_are_n
     assert far and among
     assert all(r.get("data-unsure") == "1" for r in far)
     assert not any(r.get("data-unsure") for r in among)
-    assert all(float(r.get("data-sd")) < UNSURE_SD for r in among)
-    assert "unsure" in far[0].find(f"{SVG_NS}title").text
+    sds = [float(r.find(f"{SVG_NS}title").text.split("sd ")[1]) for r in among]
+    assert max(sds) < UNSURE_SD
+    assert far[0].find(f"{SVG_NS}title").text.endswith(": unsure")
     # No point holds #dir=front: the stated prior answers there, unsure everywhere.
     assert all(r.get("data-unsure") == "1" for _, _, r in cells("#dir=front"))
     # The hatch covers the unsure cells (a run of them per row) and lets the pointer through.
@@ -224,4 +223,4 @@ def test_cells_far_from_every_point_are_marked_unsure_and_cells_among_them_are_n
 def test_without_an_uncertainty_nothing_is_hatched() -> None:
     dx, dy, _ = continuous_dims(SPACE)
     svg = render_heatmap_svg(SPACE, dx, dy, _right_half_feasible, [], n=4)
-    assert "cp-unsure" not in svg and HATCH_ID not in svg and "data-sd" not in svg
+    assert "cp-unsure" not in svg and HATCH_ID not in svg and "sd " not in svg
