@@ -208,6 +208,9 @@ def test_heat_map_axes_can_be_chosen(stocked: dict[str, Any]) -> None:
     assert {"#pose[2]", "#pose[0]"} <= labels and "#pose[1]" not in labels
     cells = [r for r in root.iter(f"{SVG_NS}rect") if r.find(f"{SVG_NS}title") is not None]
     assert len(cells) == 5 * 8 * 8
+    # The engine answers the uncertainty with P(feasible): each cell names its sd.
+    assert all(" · sd " in r.find(f"{SVG_NS}title").text for r in cells)
+    assert any(g.get("class") == "cp-legend-unsure" for g in root.iter(f"{SVG_NS}g"))
     assert client.get(url, params={"n": 1000}).status_code == 422
 
 
