@@ -76,7 +76,7 @@ class PriorPredictor:
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
         """sqrt(1 - k^2) for the largest similarity k to any point: the posterior sd of a
         unit-variance GP with the prior's kernel, given the nearest point alone (noise-free).
-        Given all points it could only be lower, so this bound is 1 far from every point."""
+        Conditioning on every point could only lower it: an upper bound, 1 far from them all."""
         points = np.vstack([self.feasible, self.infeasible])
         return _unexplained(_nearest_reach(z, points, self.lengthscale))
 
