@@ -10,9 +10,11 @@ is waiting on first, then the types without a fit, then the rest.
 
 A new type does not wait for that queue: while it has no background fit and at most
 `instant_fit_points` points, a second thread of the service's own process gives it a short fit
-at once (`instant_fit_iters` steps, a fraction of a second at that size), which the background
-fit then takes as its warm start. A request always answers with the latest finished fit (or the
-stated prior of `surrogate.models.PriorPredictor` until there is one).
+at once (`instant_fit_iters` steps, a fraction of a second at that size). The background fit
+does not warm-start from it: whether an instant fit landed before the background fit began is a
+matter of timing, and a fit must be a function of the points alone for `--deterministic` runs
+to repeat. A request always answers with the latest finished fit (or the stated prior of
+`surrogate.models.PriorPredictor` until there is one).
 
 Replicas of the service on one database share their fits (`server.surrogates.shared`): before
 fitting, the coordinator loads a stored fit that covers the type's points, and fits only under
@@ -439,7 +441,9 @@ class SurrogateEngine:
                 return
             if self._adopt_stored(key, entry):  # it landed between the look and the claim
                 return
-            z, y, warm, n = entry.z, entry.y, entry.fit, entry.n_points
+            with self._cond:  # the instant lane may install a fit meanwhile
+                z, y, n = entry.z, entry.y, entry.n_points
+                warm = None if entry.instant else entry.fit  # see the module's docstring
             fit = self._fit(z, y, warm)
             if self.shared is not None:
                 self.shared.save(entry.origin[0], fit)
