@@ -446,7 +446,7 @@ class SurrogateEngine:
                 warm = None if entry.instant else entry.fit  # see the module's docstring
             fit = self._fit(z, y, warm)
             if self.shared is not None:
-                self.shared.save(entry.origin[0], fit)
+                self.shared.save(entry.origin[0], fit, entry.origin[1])
         self.fits += 1
         _record_fit(fit.fit_seconds, n)
         log.info(

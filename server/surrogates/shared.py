@@ -26,7 +26,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 
 from server.db import Store
 from server.errors import ServiceError
-from server.orm import FitRow, utcnow
+from server.orm import FitRow, TypeRow, utcnow
 from surrogate import snapshot
 from surrogate.models import Fit
 
@@ -122,9 +122,11 @@ class FitShare:
                         conn.invalidate()  # closing the connection ends the lock with it
                         raise
 
-    def save(self, type_pk: int, fit: Fit) -> bool:
+    def save(self, type_pk: int, fit: Fit, created_at: datetime | None = None) -> bool:
         """Store `fit` unless the stored one is as new; False if not stored (superseded, or the
-        type is gone)."""
+        type is gone). `created_at`: the type row the fit was made for; a row id freed by a
+        deleted knowledge base is taken again by the next type (SQLite reuses it), and a fit
+        that finishes after its type was deleted must not become the new type's."""
         try:
             predictor = snapshot.dump(fit.predictor)
         except TypeError as exc:  # a predictor kind snapshots do not carry: kept here only
@@ -152,6 +154,13 @@ class FitShare:
         ).returning(_FITS.c.type_pk)
         try:
             with self.store.transaction(write=True) as session:
+                if created_at is not None:
+                    row_created = session.scalar(
+                        select(TypeRow.created_at).where(TypeRow.id == type_pk)
+                    )
+                    if row_created != created_at:
+                        log.info("fit of type row %s not stored: the type is gone", type_pk)
+                        return False
                 return session.execute(stmt).first() is not None
         except ServiceError as exc:  # the type was deleted meanwhile (a foreign-key refusal)
             log.info("fit of type row %s not stored: %s", type_pk, exc)

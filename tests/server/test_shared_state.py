@@ -78,6 +78,14 @@ def _type_pk(store: Store) -> int:
     return load_training_points(store, "default", type_id).origin[0]
 
 
+def _type_id(store: Store) -> str:
+    return (
+        add_points(store, "default", [PointIn.model_validate(make_point(99, graph=make_graph()))])
+        .results[0]
+        .type_id
+    )
+
+
 @pytest.mark.slow
 def test_a_stored_fit_loads_as_it_was_saved(store: Store) -> None:
     pk = _type_pk(store)
@@ -97,6 +105,21 @@ def test_a_stored_fit_loads_as_it_was_saved(store: Store) -> None:
     older = fit_classifier(z[:30], z[:30, 0] > 0.5, max_iters=5)
     assert not b.save(pk, older)
     assert a.version(pk) == 40
+
+
+def test_a_fit_for_a_deleted_type_is_not_stored_for_its_row_ids_next_type(store: Store) -> None:
+    """A knowledge base deleted while its type was being fitted frees the type's row id, which
+    SQLite gives to the next type: the late fit, made on another decision space, must not
+    become that type's."""
+    pk = _type_pk(store)
+    made_for = load_training_points(store, "default", _type_id(store)).origin[1]
+    z = np.random.default_rng(0).random((20, 3))
+    fit = fit_classifier(z, z[:, 0] > 0.5, max_iters=5)
+    share = FitShare(store, "a")
+    assert not share.save(pk, fit, made_for.replace(year=made_for.year - 1))
+    assert share.version(pk) == 0
+    assert share.save(pk, fit, made_for)
+    assert share.version(pk) == 20
 
 
 @pytest.mark.postgres
