@@ -227,9 +227,7 @@ class PWUCT:
         where every decision from the root to it is categorical (see `planner.search.tree`)."""
         if self.decisions[index].domain.kind != "categorical":
             return 0
-        if parent is not None and parent.n_choices is None:
-            return 0
-        if parent is not None and not parent.retries:
+        if parent is not None and not parent.retries:  # a continuous parent has none
             return 0
         return self.config.inconclusive_retries
 

@@ -106,8 +106,6 @@ class DecisionNode:
         attempts: dict[Value, int] = {}
         for child in self.children:
             value = child.value
-            if not isinstance(value, str):
-                return None
             if child.outcome.ok or child.outcome.conclusive:
                 attempts[value] = self.retries + 1  # passed, or proven infeasible: not retried
             else:
