@@ -188,6 +188,12 @@ class KnowledgeConfig:
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
     same name (`planner.failures.graphs`); the paper labels by name."""
+    prior_base_rate: bool = False
+    """A type whose points are all of one class (or too few to fit) is rated around its own
+    rate of feasible points, `(a + 1) / (n + 2)`, instead of 0.5, in this planner's MPF
+    (`surrogate.models.PriorPredictor.with_base_rate`): a decision whose constraints failed
+    every time so far looks worse the more it failed. Applies where the planner maximises MPF
+    itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
     live_points: bool = True
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
@@ -261,6 +267,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
             "knowledge.body_sizes": False,
+            "knowledge.prior_base_rate": False,
         },
     ),
 }

@@ -15,6 +15,7 @@ no Python loop per point, safe to share between threads).
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections.abc import Iterator
@@ -59,19 +60,33 @@ class FeasibilityPredictor(Protocol):
 class PriorPredictor:
     """The stated prior for a type with one class only or fewer than MIN_POINTS points.
 
-    p(x) = 0.5 + weight * (max_j k(x, feasible_j) - max_j k(x, infeasible_j)), with a squared
-    exponential k of lengthscale `lengthscale * sqrt(D)`: 0.5 far from any data, low next to
-    a known infeasible point, high next to a known feasible one.
+    p(x) = c + 2 weight ((1 - c) max_j k(x, feasible_j) - c max_j k(x, infeasible_j)), with a
+    squared exponential k of lengthscale `lengthscale * sqrt(D)`: the centre `c` far from any
+    data, low next to a known infeasible point, high next to a known feasible one. The centre
+    is 0.5 (no opinion) unless `with_base_rate` sets it to the type's rate of feasible points.
     """
 
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
     weight: float = SurrogateConfig.prior_weight
     lengthscale: float = SurrogateConfig.prior_lengthscale
+    center: float = 0.5
 
     def proba(self, z: np.ndarray) -> np.ndarray:
-        ell = self.lengthscale
-        return 0.5 + self.weight * (_reach(z, self.feasible, ell) - _reach(z, self.infeasible, ell))
+        ell, c = self.lengthscale, self.center
+        up, down = _reach(z, self.feasible, ell), _reach(z, self.infeasible, ell)
+        return c + 2 * self.weight * ((1.0 - c) * up - c * down)
+
+    def with_base_rate(self, feasible: int = 0, infeasible: int = 0) -> PriorPredictor:
+        """This prior centred on its type's rate of feasible points, Laplace-smoothed:
+        `(a + 1) / (n + 2)` of the prior's points plus `feasible` and `infeasible` more. A type
+        whose every point so far failed is then rated lower the more often it failed, where a
+        prior centred on 0.5 rates any place far from its failures as a coin flip, however many
+        there were (a placement node that keeps failing was left only once its space was full
+        of failures)."""
+        a = len(self.feasible) + feasible
+        n = a + len(self.infeasible) + infeasible
+        return dataclasses.replace(self, center=(a + 1.0) / (n + 2.0))
 
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
         """sqrt(1 - k^2) for the largest similarity k to any point: the posterior sd of a

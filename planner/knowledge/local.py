@@ -104,6 +104,7 @@ class _Model:
     # Other planners' points since (point id, x, ok): `LocalSurrogates.learn`.
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
+    base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
     _predictor: FeasibilityPredictor | None = None
 
     @property
@@ -115,24 +116,47 @@ class _Model:
         planner created and has not fetched yet, the stated prior on its own points (what the
         service serves for a type with so few points)."""
         if self._predictor is None:
-            if self.fetched and not self.own and not self.others:
-                self._predictor = self.fitted
+            feasible = [x for _, x, ok in self.own + self.others if ok]
+            infeasible = [x for _, x, ok in self.own + self.others if not ok]
+            fitted = self.fitted
+            if self.base_rate:
+                fitted = with_base_rate(fitted, len(feasible), len(infeasible))
+            if self.fetched and not feasible and not infeasible:
+                self._predictor = fitted
                 return self._predictor
             encoder = SpaceEncoder(self.space)
             empty = np.zeros((0, encoder.dim))
-            feasible = [x for _, x, ok in self.own + self.others if ok]
-            infeasible = [x for _, x, ok in self.own + self.others if not ok]
             z_ok = encoder.encode_points(feasible) if feasible else empty
             z_bad = encoder.encode_points(infeasible) if infeasible else empty
             if self.fetched:
-                self._predictor = RecentPoints(self.fitted, z_ok, z_bad)
+                self._predictor = RecentPoints(fitted, z_ok, z_bad)
             else:
-                self._predictor = PriorPredictor(z_ok, z_bad)
+                prior = PriorPredictor(z_ok, z_bad)
+                self._predictor = prior.with_base_rate() if self.base_rate else prior
         return self._predictor
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
         self.own.append((batch, dict(x), feasible))
         self._predictor = None
+
+
+def with_base_rate(
+    predictor: FeasibilityPredictor, feasible: int, infeasible: int
+) -> FeasibilityPredictor:
+    """`predictor` with its stated prior centred on the type's base rate, counting `feasible`
+    and `infeasible` points held beside it, if it is one (also under the service's `RecentPoints`,
+    whose points count too); a fit is returned as it is. The prior inside `UnseenChoices` keeps
+    its centre: it speaks for choices no point has tried, which the type's rate says nothing of."""
+    if isinstance(predictor, PriorPredictor):
+        return predictor.with_base_rate(feasible, infeasible)
+    if isinstance(predictor, RecentPoints):
+        base = with_base_rate(
+            predictor.base,
+            feasible + len(predictor.feasible),
+            infeasible + len(predictor.infeasible),
+        )
+        return predictor if base is predictor.base else dataclasses.replace(predictor, base=base)
+    return predictor
 
 
 @dataclass(frozen=True)
@@ -154,11 +178,13 @@ class LocalSurrogates:
         background: bool = True,
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
         pending_clock: Callable[[], float] = time.monotonic,
+        prior_base_rate: bool = KnowledgeConfig.prior_base_rate,
     ) -> None:
         """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
         until a point answers them, so that how long a run waits does not change its course."""
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
+        self.prior_base_rate = prior_base_rate
         self._models: dict[str, _Model] = {}
         self._config = OptimizerConfig()
         self._settings_known = False  # `_config` is the service's (a fetch has been answered)
@@ -198,6 +224,7 @@ class LocalSurrogates:
                 n_fitted=0,
                 fetched_at=0,
                 born_with=stored_with,
+                base_rate=self.prior_base_rate,
             )
         return True
 
@@ -340,6 +367,7 @@ class LocalSurrogates:
                 fetched_at=rollout,
                 own=own,
                 others=others,
+                base_rate=self.prior_base_rate,
             )
         for type_id in type_ids:
             if type_id not in self._models:

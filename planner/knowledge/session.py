@@ -173,6 +173,7 @@ class KnowledgeSession:
                 lambda ids, known: client.models(kb, ids, known),
                 background=background,
                 refresh_rollouts=self.config.refresh_rollouts,
+                prior_base_rate=self.config.prior_base_rate,
                 # A lifetime in wall time would make a run's course depend on its waits.
                 pending_clock=_never if self.config.deterministic else time.monotonic,
             )

@@ -72,6 +72,29 @@ def test_prior_for_few_points_or_one_class() -> None:
     assert mixed.kind == "prior" and mixed.predictor.proba(z[:1])[0] > 0.9
 
 
+def test_a_prior_centred_on_its_base_rate_falls_as_failures_accumulate() -> None:
+    """Centred on 0.5 the prior is the stated one; on the base rate, a type that failed
+    everywhere is rated lower far from its failures the more of them there are, and a known
+    point still moves P(feasible) toward its label."""
+    rng = np.random.default_rng(3)
+    z = rng.random((8, 2))
+    far = np.array([[5.0, 5.0]])
+    plain = PriorPredictor(feasible=z[:0], infeasible=z)
+    assert plain.proba(far)[0] == pytest.approx(0.5)
+    up, down = 0.3, 0.7  # reaches: the formula at c = 0.5 is the stated prior's
+    weight = plain.weight
+    assert 0.5 + 2 * weight * (0.5 * up - 0.5 * down) == pytest.approx(0.5 + weight * (up - down))
+    few = PriorPredictor(feasible=z[:0], infeasible=z[:2]).with_base_rate()
+    many = plain.with_base_rate()
+    assert few.proba(far)[0] == pytest.approx(1 / 4)
+    assert many.proba(far)[0] == pytest.approx(1 / 10)
+    assert plain.with_base_rate(infeasible=10).proba(far)[0] == pytest.approx(1 / 20)
+    assert many.proba(z[:1])[0] < many.proba(far)[0]
+    mixed = PriorPredictor(feasible=z[:1], infeasible=z[1:]).with_base_rate()
+    assert mixed.center == pytest.approx(2 / 10)
+    assert mixed.proba(z[:1])[0] > 0.8 > mixed.proba(far)[0]
+
+
 @pytest.mark.slow
 def test_imbalanced_classes_still_find_the_small_feasible_region() -> None:
     rng = np.random.default_rng(7)

@@ -9,6 +9,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from client import CpkbClient
@@ -87,6 +88,29 @@ def test_own_points_weigh_in_before_the_next_fetch():
     assert after < before - 0.1
     assert local.fetches == 1  # weighed in without asking for the model again
     assert again.x != first.x
+
+
+@pytest.mark.parametrize("base_rate", [False, True])
+def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(base_rate):
+    """`knowledge.prior_base_rate`: a fetched stated prior, with this planner's own failures
+    since, is centred on the type's rate of feasible points (all of them counted); off, it
+    stays centred on 0.5."""
+    memory = _memory()
+    space = {"#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}}
+    rng = np.random.default_rng(0)
+    points = [({"#pose": [float(a), float(b)]}, False) for a, b in rng.random((6, 2)) * 0.2]
+    memory.add("failing", space_from_json(space), points)
+    local = LocalSurrogates(
+        fetch_from(memory, OPTIMIZER), background=False, prior_base_rate=base_rate
+    )
+    local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
+    model = local._models["failing"]
+    far = SpaceEncoder(model.space).encode_points([{"#pose": [0.9, 0.9]}])
+    assert float(model.predictor().proba(far)[0]) == pytest.approx(1 / 8 if base_rate else 0.5)
+    for i in range(2):
+        local.note("failing", {"#pose": [0.1 * i, 0.15]}, feasible=False, batch=1)
+    expected = 1 / 10 if base_rate else 0.5
+    assert float(model.predictor().proba(far)[0]) == pytest.approx(expected, abs=1e-6)
 
 
 def test_served_points_stay_pending_until_a_point_answers_them():
