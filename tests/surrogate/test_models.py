@@ -11,6 +11,7 @@ from surrogate.models import (
     _SVGP,
     PriorPredictor,
     VGPPredictor,
+    _reach,
     fit_classifier,
     fit_label_regression,
     fit_regression,
@@ -81,9 +82,13 @@ def test_a_prior_centred_on_its_base_rate_falls_as_failures_accumulate() -> None
     far = np.array([[5.0, 5.0]])
     plain = PriorPredictor(feasible=z[:0], infeasible=z)
     assert plain.proba(far)[0] == pytest.approx(0.5)
-    up, down = 0.3, 0.7  # reaches: the formula at c = 0.5 is the stated prior's
-    weight = plain.weight
-    assert 0.5 + 2 * weight * (0.5 * up - 0.5 * down) == pytest.approx(0.5 + weight * (up - down))
+    mixed_plain = PriorPredictor(feasible=z[:1], infeasible=z[1:])
+    probe = rng.random((16, 2))
+    stated = 0.5 + mixed_plain.weight * (
+        _reach(probe, z[:1], mixed_plain.lengthscale)
+        - _reach(probe, z[1:], mixed_plain.lengthscale)
+    )
+    assert mixed_plain.proba(probe) == pytest.approx(stated)  # centre 0.5: the stated prior
     few = PriorPredictor(feasible=z[:0], infeasible=z[:2]).with_base_rate()
     many = plain.with_base_rate()
     assert few.proba(far)[0] == pytest.approx(1 / 4)
