@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from surrogate.config import SurrogateConfig
+
 
 class ConfigError(ValueError):
     """An unknown key, a value of the wrong type or range, or an unreadable configuration file."""
@@ -194,6 +196,11 @@ class KnowledgeConfig:
     (`surrogate.models.PriorPredictor.with_base_rate`): a decision whose constraints failed
     every time so far looks worse the more it failed. Applies where the planner maximises MPF
     itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
+    spread_walls: bool = SurrogateConfig.spread_walls
+    """Where this planner maximises MPF, the margin rule's spread keeps a node's children off
+    the faces of its box (`surrogate.avoid.AvoidSet.spread`); off, its most spread point may
+    lie on a face or in a corner, as the quasi-random baseline's does. The service's own
+    suggestions (`--suggest-in service`) follow the service's setting."""
     live_points: bool = True
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose

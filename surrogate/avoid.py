@@ -44,8 +44,12 @@ class AvoidSet:
         fixed: Mapping[str, Value],
         exclude: Sequence[Mapping[str, Value]],
         pending: Sequence[Mapping[str, Value]],
+        *,
+        walls: bool = True,
     ) -> None:
+        """`walls`: whether `spread` counts the continuous variables' walls as mirrors."""
         self.free = dict(free)
+        self.walls = walls
         self.fixed = dict(fixed)
         self.encoder = SpaceEncoder(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.width) for v in self.encoder.vars}
@@ -90,7 +94,8 @@ class AvoidSet:
             walls = np.concatenate(
                 [
                     np.full(
-                        len(self.blocks[name]), not isinstance(self.free[name], CategoricalDomain)
+                        len(self.blocks[name]),
+                        self.walls and not isinstance(self.free[name], CategoricalDomain),
                     )
                     for name in names
                 ]

@@ -37,6 +37,10 @@ class SurrogateConfig:
     """Suggest answers the most spread point within this fraction of the best MPF (0: argmax)."""
     mpf_margin_abs: float = 0.025
     """... or within this much of it (absolute P(feasible)): where every value is tiny, spread."""
+    spread_walls: bool = True
+    """The margin rule's spread counts a continuous variable's walls as mirrors, so that a
+    node's children fill the inside of its box; off, the most spread point may lie on a face or
+    in a corner, as the quasi-random baseline's Voronoi rule has it."""
     pop_size: int = 24
     """NSGA-II's population when maximising an acquisition."""
     generations: int = 2

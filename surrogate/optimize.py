@@ -57,6 +57,7 @@ class OptimizerConfig:
     # `margin_abs` of it (near-equal tiny P(feasible) ties), rather than the argmax itself.
     margin: float = SurrogateConfig.mpf_margin
     margin_abs: float = SurrogateConfig.mpf_margin_abs
+    walls: bool = SurrogateConfig.spread_walls  # see `surrogate.avoid.AvoidSet.spread`
     sbx_eta: float = 15.0
     sbx_prob: float = 0.9
     pm_eta: float = 20.0
@@ -254,7 +255,7 @@ def maximize_batch(
         value = float(np.asarray(acquisition(fixed_cols))[0])
         return [Suggestion(dict(fixed_in_space), value)]
     genome = _Genome(free)
-    avoid = AvoidSet(free, fixed_in_space, exclude, acquisition.pending.points)
+    avoid = AvoidSet(free, fixed_in_space, exclude, acquisition.pending.points, walls=config.walls)
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes = _candidates(genome, free, scorer, config, seed)

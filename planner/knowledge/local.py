@@ -179,6 +179,7 @@ class LocalSurrogates:
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
         pending_clock: Callable[[], float] = time.monotonic,
         prior_base_rate: bool = KnowledgeConfig.prior_base_rate,
+        spread_walls: bool = KnowledgeConfig.spread_walls,
     ) -> None:
         """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
         until a point answers them, so that how long a run waits does not change its course."""
@@ -186,7 +187,8 @@ class LocalSurrogates:
         self.refresh_rollouts = refresh_rollouts
         self.prior_base_rate = prior_base_rate
         self._models: dict[str, _Model] = {}
-        self._config = OptimizerConfig()
+        self.spread_walls = spread_walls
+        self._config = OptimizerConfig(walls=spread_walls)
         self._settings_known = False  # `_config` is the service's (a fetch has been answered)
         # The service's pending lifetime replaces the default with the first fetch.
         self._pending = PendingBook(ttl_s=SurrogateConfig.pending_ttl_s, clock=pending_clock)
@@ -351,7 +353,8 @@ class LocalSurrogates:
         when it was asked, `learned`: the newest other planner's point taken in then (later
         points stay weighed in on top of the new snapshot)."""
         names = {f.name for f in dataclasses.fields(OptimizerConfig)}
-        self._config = OptimizerConfig(**{k: v for k, v in answer.optimizer.items() if k in names})
+        served = {k: v for k, v in answer.optimizer.items() if k in names}
+        self._config = OptimizerConfig(**{**served, "walls": self.spread_walls})
         self._settings_known = True
         self._pending.ttl_s = answer.pending_ttl_s
         for shot in answer.models:

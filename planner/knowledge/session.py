@@ -174,6 +174,7 @@ class KnowledgeSession:
                 background=background,
                 refresh_rollouts=self.config.refresh_rollouts,
                 prior_base_rate=self.config.prior_base_rate,
+                spread_walls=self.config.spread_walls,
                 # A lifetime in wall time would make a run's course depend on its waits.
                 pending_clock=_never if self.config.deterministic else time.monotonic,
             )
