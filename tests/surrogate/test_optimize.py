@@ -163,6 +163,23 @@ def test_children_of_a_flat_acquisition_fill_the_inside_of_the_box() -> None:
     assert middle.sum() >= 2
 
 
+def test_without_walls_the_children_of_a_flat_acquisition_reach_the_faces() -> None:
+    """`walls=False` (`knowledge.spread_walls=false`): the most spread point is measured from
+    the other children alone, as the quasi-random baseline's Voronoi rule has it, so the
+    second child of a node lies on the faces of its box, far from the first."""
+    box = {"pose": ContinuousDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0])}
+
+    def flat(cols: dict) -> np.ndarray:
+        return np.full(len(cols["pose"]), 0.3)
+
+    first = {"pose": [0.5, 0.5, 0.5]}
+    for walls, on_a_face in ((False, True), (True, False)):
+        config = OptimizerConfig(margin=0.1, margin_abs=0.025, walls=walls)
+        x = maximize(Scored(flat), box, exclude=[first], seed=3, config=config).x["pose"]
+        near = min(min(v, 1.0 - v) for v in x) < 0.1
+        assert near is on_a_face, (walls, x)
+
+
 def test_a_batch_scores_each_candidate_once(mpf: MPF) -> None:
     """NSGA-II's start population and survivors are rows it was given or made: the
     acquisition (a GP per term) is run on each distinct row once per request."""

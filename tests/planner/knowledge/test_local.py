@@ -113,6 +113,16 @@ def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(bas
     assert float(model.predictor().proba(far)[0]) == pytest.approx(expected, abs=1e-6)
 
 
+@pytest.mark.parametrize("walls", [False, True])
+def test_the_planners_spread_rule_holds_over_the_services_settings(walls):
+    """`knowledge.spread_walls` decides the local maximiser's spread, whatever optimiser
+    settings the service sends with its snapshots."""
+    local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False, spread_walls=walls)
+    local.suggest(_grasp_request(), rollout=0, stored=0)
+    assert local._config.walls is walls
+    assert local._config.margin == OPTIMIZER.margin
+
+
 def test_served_points_stay_pending_until_a_point_answers_them():
     """As in the service: a batch's unused points, and other nodes' recent suggestions, push
     the next suggestion away."""
