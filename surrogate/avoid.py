@@ -56,8 +56,9 @@ class AvoidSet:
         self._encoders: dict[tuple[str, ...], SpaceEncoder] = {}
         self._check_exclude(exclude)
         self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
-        fitting = [p for p in pending if _agrees(p, fixed) and self._fits(p)]
-        self.pending_groups = self._groups(fitting, "pending")
+        self.pending_groups = self._groups(
+            self._fitting([p for p in pending if _agrees(p, fixed)]), "pending"
+        )
 
     def excluding(self, exclude: Sequence[Mapping[str, Value]]) -> AvoidSet:
         """This set with `exclude` excluded too; the pending points are not read again (a
@@ -103,13 +104,25 @@ class AvoidSet:
             groups.append(_Group(names, cols, sub.encode(cols), mask, walls))
         return groups
 
-    def _fits(self, point: Mapping[str, Value]) -> bool:
-        """A pending point is used if it gives some free variable, each with a valid value."""
-        names = [name for name in self.free if name in point]
-        if not names:
-            return False
+    def _fitting(self, points: Sequence[Mapping[str, Value]]) -> list[Mapping[str, Value]]:
+        """The pending points that give some free variable, each with a valid value: checked
+        as one batch per set of variables given, point by point only in a batch that fails."""
+        by_names: dict[tuple[str, ...], list[Mapping[str, Value]]] = {}
+        for point in points:
+            names = tuple(name for name in self.free if name in point)
+            if names:
+                by_names.setdefault(names, []).append(point)
+        fitting: list[Mapping[str, Value]] = []
+        for names, members in by_names.items():
+            if self._valid(names, members):
+                fitting.extend(members)
+            else:
+                fitting.extend(p for p in members if self._valid(names, [p]))
+        return fitting
+
+    def _valid(self, names: tuple[str, ...], points: Sequence[Mapping[str, Value]]) -> bool:
         try:
-            self._sub_encoder(tuple(names)).columns([point])
+            self._sub_encoder(names).columns(points)
         except EncodingError:
             return False
         return True
