@@ -200,7 +200,9 @@ class KnowledgeConfig:
     """Where this planner maximises MPF, the margin rule's spread keeps a node's children off
     the faces of its box (`surrogate.avoid.AvoidSet.spread`); off, its most spread point may
     lie on a face or in a corner, as the quasi-random baseline's does. The service's own
-    suggestions (`--suggest-in service`) follow the service's setting."""
+    suggestions (`--suggest-in service`) follow the service's setting. On: off, a first box
+    goes to the side of a tray rather than its middle, but on the development suite no kind
+    took measurably fewer rollouts and transfer on desk took more (BENCHMARKS.md)."""
     live_points: bool = True
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose

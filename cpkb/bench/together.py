@@ -55,8 +55,9 @@ def _mean(values: Iterable[float]) -> float:
     return float(array.mean()) if array.size else math.nan
 
 
-def _ratio_ci(alone: np.ndarray, together: np.ndarray) -> tuple[float, float] | None:
-    """Seeds resampled in pairs (seeded), the ratio of the means each time."""
+def ratio_ci(alone: np.ndarray, together: np.ndarray) -> tuple[float, float] | None:
+    """The bootstrap 95 % interval of mean(`together`) / mean(`alone`): pairs resampled
+    together (seeded), the ratio of the means each time."""
     if len(alone) < 2:
         return None
     rng = np.random.default_rng(0)
@@ -96,7 +97,7 @@ def _row(
         alone_mean=alone_mean,
         together_mean=float(together.mean()),
         ratio=float(together.mean()) / alone_mean if alone_mean > 0 else None,
-        ratio_ci=_ratio_ci(alone, together),
+        ratio_ci=ratio_ci(alone, together),
         p_value=_p_value(alone, together),
         alone_median=float(np.median(alone)),
         together_median=float(np.median(together)),

@@ -1,0 +1,54 @@
+"""benchmarks/paired.py: arms paired by (target, seed), twin arms averaged, caps for unsolved."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parents[2] / "benchmarks" / "paired.py"
+
+
+def _paired():
+    spec = importlib.util.spec_from_file_location("paired", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _run(task: str, method: str, seed: int, rollouts: int, solved: bool = True) -> dict:
+    return {
+        "task": task,
+        "method": method,
+        "seed": seed,
+        "rollouts": rollouts,
+        "solved": solved,
+        "max_rollouts": 100,
+    }
+
+
+def test_arms_are_paired_by_target_and_seed_and_twins_averaged(tmp_path, capsys):
+    runs = [
+        _run("suite/ws00/desk.yaml", "a1", 1, 10),
+        _run("suite/ws00/desk.yaml", "a2", 1, 30),
+        _run("suite/ws00/desk.yaml", "b", 1, 10),
+        _run("suite/ws00/desk.yaml", "a1", 2, 40),
+        _run("suite/ws00/desk.yaml", "b", 2, 7, solved=False),  # counts as the cap, 100
+        _run("suite/ws00/pack.yaml", "a1", 1, 5),  # no B run of this pair: left out
+    ]
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
+    found = _paired().pairs([*runs], ["a1", "a2"], ["b"])
+    assert found["desk"] == [(20.0, 10.0), (40.0, 100.0)]
+    assert "pack" not in found and found["all"] == found["desk"]
+    assert _paired().main([str(tmp_path), "a1+a2", "b"]) == 0
+    out = capsys.readouterr().out
+    assert "| desk | 2 | 30.0 | 55.0 | 1.83 |" in out
+
+
+def test_an_empty_results_directory_is_a_clear_error(tmp_path, capsys):
+    assert _paired().main([str(tmp_path), "a", "b"]) == 2
+    assert "no runs" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        _paired().main([str(tmp_path)])
