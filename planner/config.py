@@ -54,6 +54,12 @@ class SearchConfig:
     hopeless_min_children: int = 8
     """Only a node with this many children can be hopeless: a refit that lowers every
     prediction at once must not let every parent widen at every visit."""
+    leave_hopeless: bool = False
+    """(With `hopeless_widening`.) Leave hopeless subtrees: UCB selects a child whose node is
+    hopeless only while every open child's is, and a categorical decision that has tried every
+    choice, whose open choices all lead to hopeless nodes, is hopeless itself (so the decision
+    above it widens). Off, a hopeless child stays as selectable as any: the one whose rollouts
+    fail deepest (a grasp that lifts the body but cannot place it) keeps being chosen."""
     outlook_widening: bool = True
     """An untried value rated `outlook_ratio` times above the best open child's outlook opens
     at once instead of waiting for the PW law."""

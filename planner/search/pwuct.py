@@ -35,6 +35,7 @@ from planner.search.tree import (
     check_alternating,
     close,
     comparable_outlook,
+    note_choices,
     note_proposal,
     reward,
     ucb_select,
@@ -145,6 +146,8 @@ class PWUCT:
         node = self.root
         while True:
             node.visits += 1
+            if self.config.leave_hopeless and self.config.hopeless_widening:
+                note_choices(node)
             if widens(node, self.config.pw_k):
                 child = self._expand(node)
             elif (untried := self._better_untried(node)) is not None:

@@ -57,7 +57,8 @@ class DecisionNode:
     n_closed: int = 0
     n_hopeless: int = 0  # open children whose next node is hopeless
     retries: int = 0  # further attempts a choice that failed inconclusively may get
-    hopeless: bool = False  # the latest proposal here was unlikely to be feasible
+    hopeless: bool = False  # counted in the parent's widening (see `mark_hopeless`)
+    proposal_hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     first_p_feasible: float | None = None  # the knowledge base's view when the search came here
     last_p_feasible: float | None = None  # its view at the latest proposal: the outlook
     values: list[Value] = field(default_factory=list)  # the children's values, in order
@@ -133,7 +134,7 @@ def add_child(node: DecisionNode, child: ChildNode) -> None:
 
 
 def mark_hopeless(node: DecisionNode, hopeless: bool) -> None:
-    """Record whether `node`'s latest proposal was hopeless, in the count its parent widens by."""
+    """Record whether `node` is hopeless, in the count its parent widens by."""
     if node.hopeless == hopeless:
         return
     node.hopeless = hopeless
@@ -150,7 +151,21 @@ def note_proposal(node: DecisionNode, p_feasible: float, config: SearchConfig) -
     if not config.hopeless_widening:
         return
     tried = len(node.children) >= config.hopeless_min_children
-    mark_hopeless(node, tried and p_feasible < config.hopeless_ratio * node.first_p_feasible)
+    node.proposal_hopeless = tried and p_feasible < config.hopeless_ratio * node.first_p_feasible
+    mark_hopeless(node, node.proposal_hopeless)
+
+
+def note_choices(node: DecisionNode) -> None:
+    """`SearchConfig.leave_hopeless`: a node that has tried every choice is hopeless while
+    every open child leads to a hopeless node (or while its latest proposal was). Checked at
+    each visit, since a child's node turns hopeless, or back, with the proposals made there."""
+    if not node.exhausted:
+        return
+    open_children = [c for c in node.children if not c.closed]
+    stuck = bool(open_children) and all(
+        c.next is not None and c.next.hopeless for c in open_children
+    )
+    mark_hopeless(node, node.proposal_hopeless or stuck)
 
 
 def close(child: ChildNode) -> None:
@@ -221,7 +236,8 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     within `outlook_ratio` of the best outlook, except at every `outlook_free_every`-th visit: a
     subtree whose outlook stays high while it keeps failing (a failure the knowledge base does
     not model, or a model that does not learn it) must not keep the others from being reached.
-    Ties go to the earliest child, so selection is deterministic."""
+    With `leave_hopeless`, children whose node is hopeless are passed over while another open
+    child's is not. Ties go to the earliest child, so selection is deterministic."""
     best: ChildNode | None = None
     best_score = -math.inf
     log_n = math.log(max(node.visits, 1))
@@ -229,8 +245,10 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     guided = config.outlook_selection and node.visits % config.outlook_free_every != 0
     continuous = config.outlook_continuous_failures
     best_outlook = outlook(node, weight, continuous) if guided else None
+    leave = config.leave_hopeless and config.hopeless_widening and node.n_hopeless > 0
+    hopeful = leave and any(not c.closed and not _hopeless_below(c) for c in node.children)
     for child in node.children:
-        if child.closed:
+        if child.closed or (hopeful and _hopeless_below(child)):
             continue
         if best_outlook is not None:
             rated = child_outlook(child, weight, continuous)
@@ -241,6 +259,10 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
         if score > best_score:
             best, best_score = child, score
     return best
+
+
+def _hopeless_below(child: ChildNode) -> bool:
+    return child.next is not None and child.next.hopeless
 
 
 def backup(child: ChildNode, reward: float) -> None:

@@ -21,6 +21,7 @@ from planner.search.tree import (
     close,
     comparable_outlook,
     mark_hopeless,
+    note_choices,
     note_proposal,
     outlook,
     reward,
@@ -102,6 +103,49 @@ def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
     add_child(trapped.next, "a", FAIL)
     add_child(trapped.next, "b", FAIL)  # the trapped subtree closes: counted once, as closed
     assert trapped.closed and n.n_hopeless == 0 and n.n_closed == 2 and dead.closed
+
+
+def test_a_choice_node_whose_every_open_choice_is_hopeless_lets_the_node_above_widen():
+    """`search.leave_hopeless`: below a placement, a grasp node that has tried both grasps,
+    one a dead end and the other leading to a hopeless node, is hopeless itself (the placement
+    node widens); once that node is no longer hopeless, neither is the grasp node."""
+    placement = node()
+    placement.visits = 20  # below 13.5 * 2^2: the PW law alone would not widen
+    held = add_child(placement, [0.2])
+    add_child(placement, [0.7], FAIL)
+    grasps = held.next
+    grasps.var = CATEGORICAL_AB
+    add_child(grasps, "a", FAIL)
+    deep = add_child(grasps, "b")
+    note_choices(grasps)
+    assert not grasps.hopeless and not widens(placement, CONFIG.pw_k)
+    mark_hopeless(deep.next, True)
+    note_choices(grasps)
+    assert grasps.hopeless and placement.n_hopeless == 1 and widens(placement, CONFIG.pw_k)
+    mark_hopeless(deep.next, False)
+    note_choices(grasps)
+    assert not grasps.hopeless and placement.n_hopeless == 0
+
+
+def test_leaving_hopeless_subtrees_selects_a_hopeful_child_over_a_deeper_hopeless_one():
+    n = node()
+    n.visits = 10
+    deep = add_child(n, [0.2], r=0.09)
+    shallow = add_child(n, [0.7], r=0.02)
+    mark_hopeless(deep.next, True)
+    leave = replace(PLAIN, leave_hopeless=True)
+    assert ucb_select(n, PLAIN) is deep
+    assert ucb_select(n, leave) is shallow
+    mark_hopeless(shallow.next, True)  # every open child hopeless: plain UCB again
+    assert ucb_select(n, leave) is deep
+
+
+def test_a_choice_node_with_untried_choices_is_not_made_hopeless_by_its_children():
+    choices = node(CategoricalDomain(choices=["a", "b", "c"]))
+    held = add_child(choices, "a")
+    mark_hopeless(held.next, True)
+    note_choices(choices)
+    assert not choices.hopeless
 
 
 def test_a_categorical_decision_stops_at_its_number_of_choices():
