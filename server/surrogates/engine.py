@@ -137,8 +137,14 @@ class SurrogateEngine:
         """Start the coordinator (idempotent) and queue the most recently updated types: their
         fits warm the fit worker up at start. The worker itself (and its warm-up, several
         seconds) starts with the first fit, so an empty service pays nothing."""
+        self._start(after_stop=True)
+
+    def _start(self, *, after_stop: bool) -> None:
+        """`after_stop=False` (a fit queued by a request): not once `stop` has run, for a
+        restart would clear the stop the old threads have yet to see, and `stop` would wait
+        for them to its timeout while the new ones outlive the server."""
         with self._cond:
-            if self._thread is not None:
+            if self._thread is not None or (self._stopping and not after_stop):
                 return
             self._stopping = False
             self._thread = threading.Thread(target=self._run, name="cpkb-surrogates", daemon=True)
@@ -372,7 +378,7 @@ class SurrogateEngine:
             self._queue[key] = min(priority, self._queue.get(key, priority))
             self._cond.notify_all()
         if self._thread is None:
-            self.start()
+            self._start(after_stop=False)
 
     def _load_new(self, key: Key, *, queue: bool = True) -> _Entry:
         """A type's entry from all its points, queued for a fit if it needs one (unless the

@@ -169,3 +169,24 @@ def test_a_restarted_engine_serves_the_stored_fit_without_fitting(store: Store) 
         assert np.allclose(served.predictor.proba(z), fitted.predictor.proba(z))
     finally:
         second.stop()
+
+
+def test_a_fit_queued_while_the_engine_stops_does_not_restart_it(store: Store) -> None:
+    """A request that queues a fit as the server shuts down must not start the engine again:
+    that restart cleared the stop before the old threads saw it, and `stop` then waited for
+    them to its timeout (a minute per shutdown) while new threads outlived the server."""
+    graph = make_graph()
+    points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(6)]
+    type_id = add_points(store, "default", points).results[0].type_id
+    engine = SurrogateEngine(store, EngineConfig(fit_in_child_process=False, prefit_types=0))
+    engine.start()
+    coordinator = engine._thread
+    engine.stop()
+    engine._enqueue(("default", type_id))
+    assert engine._thread is None and engine._first_thread is None
+    assert coordinator is not None and not coordinator.is_alive()
+    engine.start()  # an explicit start (the lifespan's) still restarts it
+    try:
+        assert engine._thread is not None and engine._thread.is_alive()
+    finally:
+        engine.stop()
