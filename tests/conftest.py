@@ -12,11 +12,16 @@
   a `LiveServer(url, db_url, log)` (`log`: the server's output file).
 - `fresh_postgres_database(reason)` and `run_live_server(db_url, log)`: the same as context
   managers, for fixtures of a wider scope.
+- `kb_service`: one real `cpkb serve` on a fresh SQLite file for the whole session (it takes
+  seconds to start), for tests that use a knowledge base of their own on it; `live_kb`: a
+  fresh knowledge base on it per test (`LiveKb(url, name)`).
 """
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -91,3 +96,28 @@ def core_client(db_url: str) -> Iterator[object]:
 def live_server(db_url: str, tmp_path: Path) -> Iterator[LiveServer]:
     with run_live_server(db_url, tmp_path / "server.log") as server:
         yield server
+
+
+@dataclass(frozen=True)
+class LiveKb:
+    url: str
+    name: str
+
+
+@pytest.fixture(scope="session")
+def kb_service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    from cpkb.embedded import embedded_service
+
+    db: Path = tmp_path_factory.mktemp("kb") / "kb.sqlite"
+    with embedded_service(f"sqlite:///{db}") as url:
+        yield url
+
+
+@pytest.fixture
+def live_kb(kb_service: str) -> LiveKb:
+    from client import CpkbClient
+
+    name = f"t-{uuid.uuid4().hex[:12]}"
+    with CpkbClient(kb_service) as client:
+        client.create_kb(name)
+    return LiveKb(kb_service, name)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from cpkb.cli import main
 from planner.tasks import load_task
 
 
@@ -20,22 +21,42 @@ def cpkb(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_generate_refuses_bad_arguments(tmp_path: Path) -> None:
-    out = cpkb("generate", "--out", str(tmp_path / "s"), "--workspaces", "0")
+def cpkb_in_process(
+    capfd: pytest.CaptureFixture[str], *args: str
+) -> subprocess.CompletedProcess[str]:
+    """The command run by `main` in this process, for argument checks and a --no-check
+    generate (no search runs): exit status and output as a subprocess would give them."""
+    capfd.readouterr()
+    try:
+        code = main(list(args))
+    except SystemExit as exc:  # argparse's usage errors
+        code = exc.code
+    out = capfd.readouterr()
+    return subprocess.CompletedProcess(["cpkb", *args], code, out.out, out.err)
+
+
+def test_generate_refuses_bad_arguments(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    out = cpkb_in_process(capfd, "generate", "--out", str(tmp_path / "s"), "--workspaces", "0")
     assert out.returncode == 2 and "must be at least 1, got 0" in out.stderr
     (tmp_path / "file").write_text("")
-    out = cpkb("generate", "--out", str(tmp_path / "file"), "--no-check")
+    out = cpkb_in_process(capfd, "generate", "--out", str(tmp_path / "file"), "--no-check")
     assert out.returncode == 2 and "is not a directory" in out.stderr
     assert "Traceback" not in out.stderr
 
 
 @pytest.mark.slow
-def test_bench_on_a_task_file_without_predecessors_is_a_clear_error(tmp_path: Path) -> None:
+def test_bench_on_a_task_file_without_predecessors_is_a_clear_error(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
     suite = tmp_path / "suite"
-    made = cpkb("generate", "--out", str(suite), "--seed", "3", "--no-check", "--workspaces", "1")
+    made = cpkb_in_process(
+        capfd, "generate", "--out", str(suite), "--seed", "3", "--no-check", "--workspaces", "1"
+    )
     assert made.returncode == 0, made.stderr
     pre = str(suite / "ws00" / "desk_pre.yaml")
-    out = cpkb("bench", "--tasks", pre, "--methods", "cp-bo-transfer", "--out", str(tmp_path / "b"))
+    out = cpkb_in_process(
+        capfd, "bench", "--tasks", pre, "--methods", "cp-bo-transfer", "--out", str(tmp_path / "b")
+    )
     assert out.returncode == 2 and "no predecessor tasks" in out.stderr
 
 

@@ -11,6 +11,7 @@ import pytest
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
+from cpkb.cli import main
 from cpkb.embedded import free_port
 
 
@@ -24,8 +25,27 @@ def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str
     )
 
 
+def cpkb_in_process(
+    capfd: pytest.CaptureFixture[str], *args: str
+) -> subprocess.CompletedProcess[str]:
+    """The same command run by `main` in this process: the client commands need no
+    interpreter of their own (`cpkb serve` and `db upgrade` keep theirs, below)."""
+    capfd.readouterr()
+    try:
+        code = main(list(args))
+    except SystemExit as exc:  # argparse's usage errors
+        code = exc.code
+    out = capfd.readouterr()
+    return subprocess.CompletedProcess(["cpkb", *args], code, out.out, out.err)
+
+
 @pytest.mark.slow
-def test_points_survive_a_restart_and_show_in_cpkb_types(db_url: str, tmp_path: Path) -> None:
+def test_points_survive_a_restart_and_show_in_cpkb_types(
+    db_url: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    def cli(*args: str) -> subprocess.CompletedProcess[str]:
+        return cpkb_in_process(capfd, *args)
+
     log = tmp_path / "server.log"
     graphs = [make_graph(), make_graph(failure="Plan-motion", context=("shelf", "box2"))]
     with run_live_server(db_url, log) as server, CpkbClient(server.url) as client:
@@ -41,23 +61,23 @@ def test_points_survive_a_restart_and_show_in_cpkb_types(db_url: str, tmp_path: 
             assert sorted(r.point_id for r in posted) == sorted(
                 p.point_id for ps in points_before.values() for p in ps
             )
-        table = cpkb("types", "--kb", "lab", "--kb-url", server.url)
+        table = cli("types", "--kb", "lab", "--kb-url", server.url)
         assert table.returncode == 0, table.stderr
         assert "Plan-motion" in table.stdout and "Inv-kin" in table.stdout
         assert "box2" in table.stdout and "15" in table.stdout
         for type_id in before:
             assert type_id in table.stdout
 
-        assert cpkb("kb", "create", "scratch", "--url", server.url).returncode == 0
-        listing = cpkb("kb", "list", "--url", server.url)
+        assert cli("kb", "create", "scratch", "--url", server.url).returncode == 0
+        listing = cli("kb", "list", "--url", server.url)
         assert "scratch" in listing.stdout and "lab" in listing.stdout and "30" in listing.stdout
-        assert cpkb("kb", "delete", "scratch", "--url", server.url).returncode == 0
-        assert "scratch" not in cpkb("kb", "list", "--url", server.url).stdout
+        assert cli("kb", "delete", "scratch", "--url", server.url).returncode == 0
+        assert "scratch" not in cli("kb", "list", "--url", server.url).stdout
 
-        unknown = cpkb("types", "--kb", "nope", "--url", server.url)
+        unknown = cli("types", "--kb", "nope", "--url", server.url)
         assert unknown.returncode == 2
         assert unknown.stderr.strip() == "cpkb types: error: knowledge base 'nope' not found"
-        taken = cpkb("kb", "create", "lab", "--url", server.url)
+        taken = cli("kb", "create", "lab", "--url", server.url)
         assert taken.returncode == 2 and "already exists" in taken.stderr
 
 

@@ -3,8 +3,6 @@ when a fit has landed (a real server; the fit is waited for, not timed)."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -12,10 +10,13 @@ import pytest
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
+from cpkb.cli import main
 
 
 @pytest.mark.slow
-def test_types_shows_points_fitted_once_the_fit_has_landed(db_url: str, tmp_path: Path) -> None:
+def test_types_shows_points_fitted_once_the_fit_has_landed(
+    db_url: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
     with run_live_server(db_url, tmp_path / "server.log") as server, CpkbClient(server.url) as c:
         c.create_kb("lab")
         c.post_points("lab", [make_point(i, graph=make_graph()) for i in range(12)])
@@ -28,13 +29,10 @@ def test_types_shows_points_fitted_once_the_fit_has_landed(db_url: str, tmp_path
             time.sleep(0.2)
         else:
             pytest.fail(f"no fit landed: {state}")
-        out = subprocess.run(
-            [sys.executable, "-m", "cpkb", "types", "--kb", "lab", "--url", server.url],
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-    assert out.returncode == 0, out.stderr
-    row = next(line for line in out.stdout.splitlines() if summary.type_id[:8] in line)
+        capfd.readouterr()
+        code = main(["types", "--kb", "lab", "--url", server.url])  # in-process: same table
+        out = capfd.readouterr()
+    assert code == 0, out.err
+    row = next(line for line in out.out.splitlines() if summary.type_id[:8] in line)
     assert "ready" in row and "12/12" in row and "pending" not in row
-    assert "fitted" in out.stdout
+    assert "fitted" in out.out

@@ -1,4 +1,5 @@
-"""CpkbClient.suggest and .predict against `cpkb serve` (uvicorn, fits in a child process)."""
+"""CpkbClient.suggest and .predict against `cpkb serve` (uvicorn, fits in a child process):
+the session's shared service (`kb_service`), on a fresh knowledge base of this test's own."""
 
 from __future__ import annotations
 
@@ -9,27 +10,27 @@ from suggest_support import as_decision, points, suggest_body
 
 from client.client import CpkbClient
 from client.errors import BadRequest, NotFound
-from cpkb.embedded import embedded_service
 
 
 @pytest.mark.slow
-def test_client_suggests_and_predicts_through_the_real_service(sqlite_url: str) -> None:
-    with embedded_service(sqlite_url) as url, CpkbClient(url, timeout=60) as client:
-        results = client.post_points("default", points(12))
+def test_client_suggests_and_predicts_through_the_real_service(live_kb) -> None:
+    kb = live_kb.name
+    with CpkbClient(live_kb.url, timeout=60) as client:
+        results = client.post_points(kb, points(12))
         type_ids = sorted({r.type_id for r in results})
         deadline = time.monotonic() + 240
         while time.monotonic() < deadline:
-            states = [client.get_type("default", t).surrogate for t in type_ids]
+            states = [client.get_type(kb, t).surrogate for t in type_ids]
             if all(s is not None and s.status == "ready" and s.n_fitted == 12 for s in states):
                 break
             time.sleep(0.5)
         else:
             pytest.fail(f"fits did not finish: {states}")
-        answer = client.suggest("default", suggest_body(type_ids, seed=1))
+        answer = client.suggest(kb, suggest_body(type_ids, seed=1))
         assert answer.method == "mpf" and set(answer.p_feasible) == set(type_ids)
-        p = client.predict("default", type_ids[0], [as_decision(answer.x)])
+        p = client.predict(kb, type_ids[0], [as_decision(answer.x)])
         assert len(p) == 1 and 0.0 <= p[0] <= 1.0
         with pytest.raises(NotFound):
-            client.predict("default", "0" * 32, [as_decision(answer.x)])
+            client.predict(kb, "0" * 32, [as_decision(answer.x)])
         with pytest.raises(BadRequest):
-            client.suggest("default", suggest_body(type_ids, fixed={"d": "up"}))
+            client.suggest(kb, suggest_body(type_ids, fixed={"d": "up"}))

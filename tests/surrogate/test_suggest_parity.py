@@ -9,8 +9,8 @@ then against a real service over HTTP, whose fits the planner fetches as snapsho
 from __future__ import annotations
 
 import json
-import tempfile
 import time
+import uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -118,24 +118,23 @@ def test_the_planners_copy_refuses_what_the_service_refuses() -> None:
 
 
 @pytest.fixture(scope="module")
-def stocked_service() -> Iterator[tuple[str, str]]:
-    """A real service on a fresh SQLite file holding the recorded types' points, every fit
-    landed (a fit landing between two answers would change the model under a comparison)."""
-    from cpkb.embedded import embedded_service
-
-    with tempfile.TemporaryDirectory() as tmp, embedded_service(f"sqlite:///{tmp}/kb.db") as url:
-        with CpkbClient(url) as client:
-            client.create_kb("parity")
-            points = [
-                PointIn(graph=t["graph"], x=p["x"], feasible=p["feasible"], key=f"{i}:{j}")
-                for i, t in enumerate(RECORDED["types"])
-                for j, p in enumerate(t["points"])
-            ]
-            stored = client.post_points("parity", points)
-            type_ids = {r.type_id for r in stored}
-            assert type_ids == {t["type_id"] for t in RECORDED["types"]}
-            _wait_for_fits(client, "parity", type_ids)
-        yield url, "parity"
+def stocked_service(kb_service: str) -> Iterator[tuple[str, str]]:
+    """The session's real service, with a fresh knowledge base holding the recorded types'
+    points, every fit landed (a fit landing between two answers would change the model under
+    a comparison; other knowledge bases' fits on the service do not touch its models)."""
+    kb = f"parity-{uuid.uuid4().hex[:8]}"
+    with CpkbClient(kb_service) as client:
+        client.create_kb(kb)
+        points = [
+            PointIn(graph=t["graph"], x=p["x"], feasible=p["feasible"], key=f"{i}:{j}")
+            for i, t in enumerate(RECORDED["types"])
+            for j, p in enumerate(t["points"])
+        ]
+        stored = client.post_points(kb, points)
+        type_ids = {r.type_id for r in stored}
+        assert type_ids == {t["type_id"] for t in RECORDED["types"]}
+        _wait_for_fits(client, kb, type_ids)
+    yield kb_service, kb
 
 
 def _wait_for_fits(client: CpkbClient, kb: str, type_ids: set[str]) -> None:
