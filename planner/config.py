@@ -278,6 +278,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.outlook_widening": False,
             "search.outlook_selection": False,
             "search.hopeless_widening": False,
+            "search.leave_hopeless": False,
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
