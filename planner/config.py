@@ -54,12 +54,17 @@ class SearchConfig:
     hopeless_min_children: int = 8
     """Only a node with this many children can be hopeless: a refit that lowers every
     prediction at once must not let every parent widen at every visit."""
+    hopeless_choices: bool = False
+    """(With `hopeless_widening`.) A categorical decision that has tried every choice, whose
+    open choices all lead to hopeless nodes, is hopeless itself, so the decision above it
+    widens: a grasp node can never have `hopeless_min_children` children, and without this a
+    placement under which only a grasp that cannot be placed is left widens by the PW law only
+    (`planner.search.tree.note_choices`)."""
     leave_hopeless: bool = False
-    """(With `hopeless_widening`.) Leave hopeless subtrees: UCB selects a child whose node is
-    hopeless only while every open child's is, and a categorical decision that has tried every
-    choice, whose open choices all lead to hopeless nodes, is hopeless itself (so the decision
-    above it widens). Off, a hopeless child stays as selectable as any: the one whose rollouts
-    fail deepest (a grasp that lifts the body but cannot place it) keeps being chosen."""
+    """(With `hopeless_widening`.) UCB selects a child whose node is hopeless only while every
+    open child's is. Off, a hopeless child stays as selectable as any, and the one whose
+    rollouts fail deepest (a grasp that lifts the body but cannot place it) keeps being chosen.
+    Judged together with `hopeless_choices` (BENCHMARKS.md): off until the suites agree."""
     outlook_widening: bool = True
     """An untried value rated `outlook_ratio` times above the best open child's outlook opens
     at once instead of waiting for the PW law."""
@@ -279,6 +284,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.outlook_selection": False,
             "search.hopeless_widening": False,
             "search.leave_hopeless": False,
+            "search.hopeless_choices": False,
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,

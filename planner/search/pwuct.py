@@ -146,7 +146,7 @@ class PWUCT:
         node = self.root
         while True:
             node.visits += 1
-            if self.config.leave_hopeless and self.config.hopeless_widening:
+            if self.config.hopeless_choices and self.config.hopeless_widening:
                 note_choices(node)
             if widens(node, self.config.pw_k):
                 child = self._expand(node)

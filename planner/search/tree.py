@@ -156,7 +156,7 @@ def note_proposal(node: DecisionNode, p_feasible: float, config: SearchConfig) -
 
 
 def note_choices(node: DecisionNode) -> None:
-    """`SearchConfig.leave_hopeless`: a node that has tried every choice is hopeless while
+    """`SearchConfig.hopeless_choices`: a node that has tried every choice is hopeless while
     every open child leads to a hopeless node (or while its latest proposal was). Checked at
     each visit, since a child's node turns hopeless, or back, with the proposals made there."""
     if not node.exhausted:

@@ -106,7 +106,7 @@ def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
 
 
 def test_a_choice_node_whose_every_open_choice_is_hopeless_lets_the_node_above_widen():
-    """`search.leave_hopeless`: below a placement, a grasp node that has tried both grasps,
+    """`search.hopeless_choices`: below a placement, a grasp node that has tried both grasps,
     one a dead end and the other leading to a hopeless node, is hopeless itself (the placement
     node widens); once that node is no longer hopeless, neither is the grasp node."""
     placement = node()
