@@ -10,8 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_support import cpkb_in_process
 
-from cpkb.cli import main
 from planner.tasks import load_task
 
 
@@ -19,20 +19,6 @@ def cpkb(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "cpkb", *args], capture_output=True, text=True, timeout=1800
     )
-
-
-def cpkb_in_process(
-    capfd: pytest.CaptureFixture[str], *args: str
-) -> subprocess.CompletedProcess[str]:
-    """The command run by `main` in this process, for argument checks and a --no-check
-    generate (no search runs): exit status and output as a subprocess would give them."""
-    capfd.readouterr()
-    try:
-        code = main(list(args))
-    except SystemExit as exc:  # argparse's usage errors
-        code = exc.code
-    out = capfd.readouterr()
-    return subprocess.CompletedProcess(["cpkb", *args], code, out.out, out.err)
 
 
 def test_generate_refuses_bad_arguments(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:

@@ -8,10 +8,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_support import cpkb_in_process
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
-from cpkb.cli import main
 from cpkb.embedded import free_port
 
 
@@ -23,20 +23,6 @@ def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str
         timeout=300,
         cwd=cwd,
     )
-
-
-def cpkb_in_process(
-    capfd: pytest.CaptureFixture[str], *args: str
-) -> subprocess.CompletedProcess[str]:
-    """The same command run by `main` in this process: the client commands need no
-    interpreter of their own (`cpkb serve` and `db upgrade` keep theirs, below)."""
-    capfd.readouterr()
-    try:
-        code = main(list(args))
-    except SystemExit as exc:  # argparse's usage errors
-        code = exc.code
-    out = capfd.readouterr()
-    return subprocess.CompletedProcess(["cpkb", *args], code, out.out, out.err)
 
 
 @pytest.mark.slow
