@@ -57,7 +57,7 @@ class AvoidSet:
         self._check_exclude(exclude)
         self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
         self.pending_groups = self._groups(
-            self._fitting([p for p in pending if _agrees(p, fixed)]), "pending"
+            [p for p in pending if _agrees(p, fixed)], "pending", drop_invalid=True
         )
 
     def excluding(self, exclude: Sequence[Mapping[str, Value]]) -> AvoidSet:
@@ -82,15 +82,30 @@ class AvoidSet:
             self._encoders[names] = SpaceEncoder(domains, separations=False)
         return self._encoders[names]
 
-    def _groups(self, points: Sequence[Mapping[str, Value]], where: str) -> list[_Group]:
+    def _groups(
+        self, points: Sequence[Mapping[str, Value]], where: str, *, drop_invalid: bool = False
+    ) -> list[_Group]:
+        """The points grouped by the free variables they give, each group encoded at once.
+        `drop_invalid` (pending points, which come from other requests): a point without a
+        free variable or with an invalid value is left out, found point by point only in a
+        group that fails; otherwise the first invalid value raises, naming `where`."""
         by_names: dict[tuple[str, ...], list[Mapping[str, Value]]] = {}
         for point in points:
             names = tuple(name for name in self.free if name in point)
-            by_names.setdefault(names, []).append(point)
+            if names:
+                by_names.setdefault(names, []).append(point)
         groups = []
         for names, members in by_names.items():
             sub = self._sub_encoder(names)
-            cols = sub.columns(members, where=where)
+            try:
+                cols = sub.columns(members, where=where)
+            except EncodingError:
+                if not drop_invalid:
+                    raise
+                members = [p for p in members if _valid(sub, p)]
+                if not members:
+                    continue
+                cols = sub.columns(members, where=where)
             mask = np.concatenate([self.blocks[name] for name in names])
             walls = np.concatenate(
                 [
@@ -103,29 +118,6 @@ class AvoidSet:
             )
             groups.append(_Group(names, cols, sub.encode(cols), mask, walls))
         return groups
-
-    def _fitting(self, points: Sequence[Mapping[str, Value]]) -> list[Mapping[str, Value]]:
-        """The pending points that give some free variable, each with a valid value: checked
-        as one batch per set of variables given, point by point only in a batch that fails."""
-        by_names: dict[tuple[str, ...], list[Mapping[str, Value]]] = {}
-        for point in points:
-            names = tuple(name for name in self.free if name in point)
-            if names:
-                by_names.setdefault(names, []).append(point)
-        fitting: list[Mapping[str, Value]] = []
-        for names, members in by_names.items():
-            if self._valid(names, members):
-                fitting.extend(members)
-            else:
-                fitting.extend(p for p in members if self._valid(names, [p]))
-        return fitting
-
-    def _valid(self, names: tuple[str, ...], points: Sequence[Mapping[str, Value]]) -> bool:
-        try:
-            self._sub_encoder(names).columns(points)
-        except EncodingError:
-            return False
-        return True
 
     @property
     def empty(self) -> bool:
@@ -173,6 +165,14 @@ class AvoidSet:
         """`(n, k)` normalised distances to the pending points."""
         parts = [_distances(z[:, g.mask], g.z) for g in self.pending_groups]
         return np.hstack(parts) if parts else np.zeros((len(z), 0))
+
+
+def _valid(encoder: SpaceEncoder, point: Mapping[str, Value]) -> bool:
+    try:
+        encoder.columns([point])
+    except EncodingError:
+        return False
+    return True
 
 
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:

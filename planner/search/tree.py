@@ -162,9 +162,7 @@ def note_choices(node: DecisionNode) -> None:
     if not node.exhausted:
         return
     open_children = [c for c in node.children if not c.closed]
-    stuck = bool(open_children) and all(
-        c.next is not None and c.next.hopeless for c in open_children
-    )
+    stuck = bool(open_children) and all(_hopeless_below(c) for c in open_children)
     mark_hopeless(node, node.proposal_hopeless or stuck)
 
 

@@ -38,3 +38,19 @@ def test_excluding_more_points_equals_a_set_built_with_them() -> None:
     np.testing.assert_allclose(wider.pending_distances(z), built.pending_distances(z))
     assert wider.excluded(cols)[:2].all()
     assert not base.excluded(cols)[1]
+
+
+def test_invalid_pending_points_are_left_out_and_the_rest_kept() -> None:
+    """Pending points come from other requests: one without a free variable, or with a value
+    outside the space, is left out; the valid ones of its group still repel."""
+    bad = [
+        {"dir": "left", "pose": [5.0, 0.1]},  # outside the pose's range
+        {"dir": "up", "pose": [0.5, 0.5]},  # not a choice
+        {"other": 1},  # no free variable
+    ]
+    avoid = AvoidSet(SPACE, {}, EXCLUDE, [*bad, *PENDING, {"pose": [0.3, 0.3]}])
+    kept = sorted(len(g.z) for g in avoid.pending_groups)
+    assert kept == [1, 1]  # PENDING's point, and the pose-only one
+    clean = AvoidSet(SPACE, {}, EXCLUDE, [*PENDING, {"pose": [0.3, 0.3]}])
+    z = avoid.encoder.encode(candidates())
+    np.testing.assert_allclose(avoid.pending_distances(z), clean.pending_distances(z))
