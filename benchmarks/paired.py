@@ -20,30 +20,25 @@ from pathlib import Path
 import numpy as np
 
 from cpkb.bench.results import ResultStore
+from cpkb.bench.scenarios import task_kinds
 from cpkb.bench.stats import rollouts_metric
 from cpkb.bench.together import ratio_ci
-
-KINDS = ("desk", "regrasp", "pack")
-
-
-def _kind(task: str) -> str:
-    stem = Path(task).stem
-    return next((kind for kind in KINDS if stem == kind or stem.startswith(kind)), stem)
 
 
 def pairs(records: list[dict], a: list[str], b: list[str]) -> dict[str, list[tuple[float, float]]]:
     """Per kind (and "all"): (mean of A's runs, mean of B's runs) of each (target, seed) that
-    both arms ran."""
+    both arms ran. A task without a declared kind (a shipped task) is a kind of its own."""
     runs: dict[tuple[str, int], dict[str, float]] = defaultdict(dict)
     for record in records:
         runs[(record["task"], record["seed"])][record["method"]] = rollouts_metric(record)
+    kinds = task_kinds({task for task, _ in runs})
     out: dict[str, list[tuple[float, float]]] = defaultdict(list)
     for (task, _), by_method in sorted(runs.items()):
         in_a = [by_method[m] for m in a if m in by_method]
         in_b = [by_method[m] for m in b if m in by_method]
         if in_a and in_b:
             pair = (float(np.mean(in_a)), float(np.mean(in_b)))
-            out[_kind(task)].append(pair)
+            out[kinds.get(task, task)].append(pair)
             out["all"].append(pair)
     return out
 

@@ -8,7 +8,10 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parents[2] / "benchmarks" / "paired.py"
+ROOT = Path(__file__).parents[2]
+SCRIPT = ROOT / "benchmarks" / "paired.py"
+DESK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "desk.yaml")
+PACK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "pack.yaml")
 
 
 def _paired():
@@ -31,12 +34,12 @@ def _run(task: str, method: str, seed: int, rollouts: int, solved: bool = True) 
 
 def test_arms_are_paired_by_target_and_seed_and_twins_averaged(tmp_path, capsys):
     runs = [
-        _run("suite/ws00/desk.yaml", "a1", 1, 10),
-        _run("suite/ws00/desk.yaml", "a2", 1, 30),
-        _run("suite/ws00/desk.yaml", "b", 1, 10),
-        _run("suite/ws00/desk.yaml", "a1", 2, 40),
-        _run("suite/ws00/desk.yaml", "b", 2, 7, solved=False),  # counts as the cap, 100
-        _run("suite/ws00/pack.yaml", "a1", 1, 5),  # no B run of this pair: left out
+        _run(DESK, "a1", 1, 10),
+        _run(DESK, "a2", 1, 30),
+        _run(DESK, "b", 1, 10),
+        _run(DESK, "a1", 2, 40),
+        _run(DESK, "b", 2, 7, solved=False),  # counts as the cap, 100
+        _run(PACK, "a1", 1, 5),  # no B run of this pair: left out
     ]
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
     found = _paired().pairs([*runs], ["a1", "a2"], ["b"])
