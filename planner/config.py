@@ -59,12 +59,12 @@ class SearchConfig:
     open choices all lead to hopeless nodes, is hopeless itself, so the decision above it
     widens: a grasp node can never have `hopeless_min_children` children, and without this a
     placement under which only a grasp that cannot be placed is left widens by the PW law only
-    (`planner.search.tree.note_choices`)."""
+    (`planner.search.tree.note_choices`). Off: the development suites disagreed (BENCHMARKS.md)."""
     leave_hopeless: bool = False
     """(With `hopeless_widening`.) UCB selects a child whose node is hopeless only while every
     open child's is. Off, a hopeless child stays as selectable as any, and the one whose
     rollouts fail deepest (a grasp that lifts the body but cannot place it) keeps being chosen.
-    Judged together with `hopeless_choices` (BENCHMARKS.md): off until the suites agree."""
+    Off: with `hopeless_choices`, the development and held-out suites disagreed (BENCHMARKS.md)."""
     outlook_widening: bool = True
     """An untried value rated `outlook_ratio` times above the best open child's outlook opens
     at once instead of waiting for the PW law."""
