@@ -10,18 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_support import cpkb_in_process
 
 from cpkb.cli import main
-
-
-def cli(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    """`cpkb` run in-process (argument checks need no subprocess): exit status and stderr,
-    at the file-descriptor level so that nothing a library prints there escapes the check."""
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse's own usage errors
-        code = exc.code
-    return code, capfd.readouterr().err
 
 
 def test_plan_prints_the_result_as_its_last_json_line(capsys):
@@ -54,15 +45,15 @@ def test_plan_without_json_summarises_in_words(capsys):
     ],
 )
 def test_plan_mistakes_are_one_line_errors(argv, message, capfd):
-    code, err = cli(["plan", *argv, "--json"], capfd)
-    assert code == 2, err
-    assert message in err and "Traceback" not in err
+    out = cpkb_in_process(capfd, "plan", *argv, "--json")
+    assert out.returncode == 2, out.stderr
+    assert message in out.stderr and "Traceback" not in out.stderr
 
 
 def test_a_misspelled_task_fails_before_any_progress_is_drawn(capfd):
-    code, err = cli(["plan", "--task", "deks", "--method", "quasi-random"], capfd)
-    assert code == 2, err
-    assert err.strip().splitlines() == [
+    out = cpkb_in_process(capfd, "plan", "--task", "deks", "--method", "quasi-random")
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().splitlines() == [
         "cpkb plan: error: deks: no such task (shipped: deskP, desk, regrasp, packP1, packP2, "
         "packP3, pack; or give a .yaml file)"
     ]
@@ -80,9 +71,9 @@ def test_a_misspelled_task_fails_before_any_progress_is_drawn(capfd):
     ],
 )
 def test_a_kb_url_that_is_not_an_http_url_is_a_usage_error(url, message, capfd):
-    code, err = cli(["plan", "--task", "analytic:desk", "--kb-url", url], capfd)
-    assert code == 2, err
-    assert err.strip().splitlines() == [f"cpkb plan: error: --kb-url {url!r} {message}"]
+    out = cpkb_in_process(capfd, "plan", "--task", "analytic:desk", "--kb-url", url)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().splitlines() == [f"cpkb plan: error: --kb-url {url!r} {message}"]
 
 
 def test_a_bad_knowledge_base_name_is_a_usage_error(capsys):
