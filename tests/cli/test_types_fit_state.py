@@ -7,10 +7,10 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_support import cpkb_in_process
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
-from cpkb.cli import main
 
 
 @pytest.mark.slow
@@ -29,10 +29,8 @@ def test_types_shows_points_fitted_once_the_fit_has_landed(
             time.sleep(0.2)
         else:
             pytest.fail(f"no fit landed: {state}")
-        capfd.readouterr()
-        code = main(["types", "--kb", "lab", "--url", server.url])  # in-process: same table
-        out = capfd.readouterr()
-    assert code == 0, out.err
-    row = next(line for line in out.out.splitlines() if summary.type_id[:8] in line)
+        out = cpkb_in_process(capfd, "types", "--kb", "lab", "--url", server.url)
+    assert out.returncode == 0, out.stderr
+    row = next(line for line in out.stdout.splitlines() if summary.type_id[:8] in line)
     assert "ready" in row and "12/12" in row and "pending" not in row
-    assert "fitted" in out.out
+    assert "fitted" in out.stdout
