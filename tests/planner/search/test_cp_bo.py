@@ -299,9 +299,8 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
 def test_deterministic_runs_of_one_seed_on_fresh_knowledge_bases_agree(kb_service):
     """With every refit waited for, deskP then desk with cp-bo take the same course twice.
 
-    15 deskP rollouts (not 30): every one waits for its refit, and the shorter stock leaves
-    desk more to ask the knowledge base (6 rollouts, 7 suggestions, 5 types, against 2, 3, 2
-    after 30), in under half the time."""
+    A short deskP stock: each of its rollouts waits for a refit, and what it leaves unlearnt
+    makes desk ask the knowledge base more, so more of the course is compared."""
     from planner.config import PlanConfig
 
     config = PlanConfig().with_overrides({"knowledge.deterministic": True})
