@@ -85,6 +85,14 @@ class SearchConfig:
     next ones keep failing), not only through a categorical choice; off: such a child's outlook
     is the model's view below it, which an unfitted type leaves near its prior."""
 
+    restart_unit: int = 0
+    """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):
+    at the end of each run the tree starts afresh and the knowledge base is kept. Rewards back
+    up by max, so UCB keeps to a child whose rollouts once failed deepest (a grasp that lifts
+    the body but can never place it); a fresh tree opens its first children with every failure
+    learned so far. Luby's schedule is within a log factor of the best fixed schedule whatever
+    the distribution of run lengths. 0: one tree for the whole run (the paper)."""
+
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or
     the motion planner found nothing; not a proof of infeasibility), where no continuous decision
@@ -95,6 +103,7 @@ class SearchConfig:
         _at_least(
             self,
             inconclusive_retries=0,
+            restart_unit=0,
             pw_k=0.0,
             ucb_c=0.0,
             hopeless_ratio=0.0,
@@ -285,6 +294,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.hopeless_widening": False,
             "search.leave_hopeless": False,
             "search.hopeless_choices": False,
+            "search.restart_unit": 0,
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,

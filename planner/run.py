@@ -24,7 +24,7 @@ import numpy as np
 
 from client.models import Value
 from planner.config import PlanConfig, method_config
-from planner.search import PWUCT, SearchProgress
+from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
 
@@ -310,6 +310,13 @@ def _search(
         sample_s=outcome.sample_s,
         bindings=outcome.bindings,
         best_depth=outcome.best_depth,
-        notes=["search space exhausted"] if outcome.exhausted else [],
+        notes=_notes(outcome),
         config=request.config.to_dict(),
     )
+
+
+def _notes(outcome: SearchResult) -> list[str]:
+    notes = ["search space exhausted"] if outcome.exhausted else []
+    if outcome.restarts:
+        notes.append(f"tree restarted {outcome.restarts} times")
+    return notes

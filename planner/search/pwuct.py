@@ -11,6 +11,8 @@ it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`SearchConfig.outlook_ratio`; each rule has its switch).
+With `SearchConfig.restart_unit`, the tree is dropped and grown anew on Luby's schedule; rollouts
+count across trees, and the sampler's knowledge carries over.
 """
 
 from __future__ import annotations
@@ -75,7 +77,20 @@ class SearchResult:
     sim_s: float
     sample_s: float
     exhausted: bool = False
+    restarts: int = 0
     solutions: list[dict[str, Value]] = field(default_factory=list)
+
+
+def luby(i: int) -> int:
+    """The i-th term (from 1) of Luby, Sinclair and Zuckerman's universal restart sequence:
+    1, 1, 2, 1, 1, 2, 4, 1, 1, 2, 1, 1, 2, 4, 8, ..."""
+    if i < 1:
+        raise ValueError(f"Luby's sequence starts at 1, not {i}")
+    while True:
+        k = i.bit_length()
+        if i == (1 << k) - 1:
+            return 1 << (k - 1)
+        i -= (1 << (k - 1)) - 1
 
 
 class PWUCT:
@@ -96,9 +111,9 @@ class PWUCT:
         self.rng = np.random.default_rng(seed)
         self.decisions = world.skeleton.decisions
         self.n_layers = len(world.skeleton.layers)
-        self.root = DecisionNode(
-            0, self.decisions[0], {}, world.initial_state(), retries=self._retries(0, None)
-        )
+        self.root = self._new_root()
+        self.restarts = 0
+        self._tree_rollouts = 0
         self.rollout = 0
         self.best_depth = 0.0
         self.sim_s = 0.0
@@ -128,6 +143,16 @@ class PWUCT:
                 progress(SearchProgress(self.rollout, self.best_depth, first is not None))
             if first is not None and stop_at_first:
                 break
+            self._tree_rollouts += 1
+            unit = self.config.restart_unit
+            if (
+                unit
+                and self._tree_rollouts >= unit * luby(self.restarts + 1)
+                and self.rollout < max_rollouts
+            ):
+                self.root = self._new_root()
+                self.restarts += 1
+                self._tree_rollouts = 0
         return SearchResult(
             solved=first is not None,
             rollouts=first if first is not None else self.rollout,
@@ -137,7 +162,13 @@ class PWUCT:
             sim_s=self.sim_s,
             sample_s=self.sample_s,
             exhausted=self.root.closed,
+            restarts=self.restarts,
             solutions=solutions,
+        )
+
+    def _new_root(self) -> DecisionNode:
+        return DecisionNode(
+            0, self.decisions[0], {}, self.world.initial_state(), retries=self._retries(0, None)
         )
 
     def _rollout(self) -> dict[str, Value] | None:

@@ -100,12 +100,15 @@ def test_a_bad_file_is_a_clear_error(tmp_path, name, text, message):
 
 
 def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
-    asked = PlanConfig().with_overrides({"cp_bo.lookahead": True, "search.pw_k": 7})
+    asked = PlanConfig().with_overrides(
+        {"cp_bo.lookahead": True, "search.pw_k": 7, "search.restart_unit": 16}
+    )
     paper = method_config("cp-bo-paper", asked)
     assert not (paper.cp_bo.lookahead or paper.cp_bo.prematch or paper.cp_bo.continuations)
     assert paper.cp_bo.batch == 1
     search = paper.search
     assert not (search.outlook_widening or search.outlook_selection or search.hopeless_widening)
+    assert search.restart_unit == 0
     knowledge = paper.knowledge
     assert not (knowledge.square_grasps or knowledge.grasp_symmetry or knowledge.metric_frames)
     assert search.pw_k == 7.0  # a knob the paper does not fix stays the caller's

@@ -1,0 +1,81 @@
+"""`search.restart_unit`: the tree is grown anew on Luby's schedule, rollouts count across
+trees, and a fresh tree's first child is sampled as a first child again."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import pytest
+
+from client.models import Value
+from planner.config import SearchConfig
+from planner.search import PWUCT
+from planner.search.analytic import AnalyticWorld, analytic_world
+from planner.search.pwuct import luby
+from planner.search.samplers.base import SampleContext
+from planner.search.samplers.quasi_random import QuasiRandomSampler
+from planner.world import TransitionOutcome
+
+
+class Unplaceable:
+    """The analytic desk with every placement moved out of the arm's reach: no run solves."""
+
+    def __init__(self) -> None:
+        self.inner: AnalyticWorld = analytic_world("desk")
+        self.name = "unplaceable-desk"
+        self.skeleton = self.inner.skeleton
+
+    def initial_state(self) -> object:
+        return self.inner.initial_state()
+
+    def transition(
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
+    ) -> TransitionOutcome:
+        if index == 1:
+            bindings = {**bindings, "#pose12": (0.0, 0.0, 0.0)}
+        return self.inner.transition(index, bindings, state)
+
+
+class FirstChoices(QuasiRandomSampler):
+    """Quasi-random, noting the rollout of every grasp opened at a root with no children."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.fresh_roots: list[int] = []
+
+    def propose(self, ctx: SampleContext) -> Value:
+        if ctx.depth == 0 and not ctx.siblings:
+            self.fresh_roots.append(ctx.rollout)
+        return super().propose(ctx)
+
+
+def test_lubys_sequence():
+    assert [luby(i) for i in range(1, 16)] == [1, 1, 2, 1, 1, 2, 4, 1, 1, 2, 1, 1, 2, 4, 8]
+    with pytest.raises(ValueError, match="starts at 1"):
+        luby(0)
+
+
+def test_the_tree_restarts_on_lubys_schedule_and_rollouts_count_across_trees():
+    sampler = FirstChoices()
+    search = PWUCT(Unplaceable(), sampler, seed=3, config=SearchConfig(restart_unit=5))
+    result = search.run(100)
+    assert not result.solved
+    assert result.rollouts == result.rollouts_spent == 100
+    # Runs of 5 x (1, 1, 2, 1, 1, 2, 4, 1, 1, 2, 1, 1, 2): none after the budget's last rollout.
+    assert sampler.fresh_roots == [1, 6, 11, 21, 26, 31, 41, 61, 66, 71, 81, 86, 91]
+    assert result.restarts == 12
+    assert search.root.visits == 10
+
+
+def test_without_a_unit_one_tree_serves_the_whole_run():
+    sampler = FirstChoices()
+    result = PWUCT(Unplaceable(), sampler, seed=3).run(100)
+    assert sampler.fresh_roots == [1]
+    assert result.restarts == 0
+
+
+def test_a_restarting_search_still_solves():
+    result = PWUCT(
+        analytic_world("desk"), QuasiRandomSampler(), seed=4, config=SearchConfig(restart_unit=2)
+    ).run(2000)
+    assert result.solved
