@@ -8,7 +8,8 @@ from collections.abc import Mapping
 import pytest
 
 from client.models import Value
-from planner.config import SearchConfig
+from planner.config import PlanConfig, SearchConfig
+from planner.run import run_plan
 from planner.search import PWUCT
 from planner.search.analytic import AnalyticWorld, analytic_world
 from planner.search.pwuct import luby
@@ -79,3 +80,11 @@ def test_a_restarting_search_still_solves():
         analytic_world("desk"), QuasiRandomSampler(), seed=4, config=SearchConfig(restart_unit=2)
     ).run(2000)
     assert result.solved
+
+
+def test_a_runs_record_notes_its_restarts():
+    config = PlanConfig().with_overrides({"search.restart_unit": 1})
+    result = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=10, config=config)
+    assert not result.solved
+    assert "tree restarted 6 times" in result.notes  # runs 1,1,2,1,1,2 of the 10 rollouts
+    assert result.config["search"]["restart_unit"] == 1
