@@ -37,6 +37,9 @@ def _at_least(config: object, **bounds: float) -> None:
             raise ConfigError(f"{key} must be at least {bound}, not {value}")
 
 
+RESTART_SCHEDULES = ("luby", "geometric")
+
+
 @dataclass(frozen=True)
 class SearchConfig:
     """PW-UCT's knobs (`planner.search.tree`)."""
@@ -92,6 +95,10 @@ class SearchConfig:
     the body but can never place it); a fresh tree opens its first children with every failure
     learned so far. Luby's schedule is within a log factor of the best fixed schedule whatever
     the distribution of run lengths. 0: one tree for the whole run (the paper)."""
+    restart_schedule: str = "luby"
+    """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
+    units), so a task that needs one long tree loses at most the rollouts spent before it, at
+    the cost of cutting a stuck tree later."""
 
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or
@@ -100,6 +107,11 @@ class SearchConfig:
     of clutter is unlucky never solves its task. 0: a failed choice is closed for good."""
 
     def __post_init__(self) -> None:
+        if self.restart_schedule not in RESTART_SCHEDULES:
+            raise ConfigError(
+                f"search.restart_schedule is one of {', '.join(RESTART_SCHEDULES)},"
+                f" not {self.restart_schedule!r}"
+            )
         _at_least(
             self,
             inconclusive_retries=0,

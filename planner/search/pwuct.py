@@ -11,8 +11,8 @@ it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`SearchConfig.outlook_ratio`; each rule has its switch).
-With `SearchConfig.restart_unit`, the tree is dropped and grown anew on Luby's schedule; rollouts
-count across trees, and the sampler's knowledge carries over.
+With `SearchConfig.restart_unit`, the tree is dropped and grown anew on Luby's (or a doubling)
+schedule; rollouts count across trees, and the sampler's knowledge carries over.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class PWUCT:
             unit = self.config.restart_unit
             if (
                 unit
-                and self._tree_rollouts >= unit * luby(self.restarts + 1)
+                and self._tree_rollouts >= unit * self._tree_units()
                 and self.rollout < max_rollouts
             ):
                 self.root = self._new_root()
@@ -165,6 +165,12 @@ class PWUCT:
             restarts=self.restarts,
             solutions=solutions,
         )
+
+    def _tree_units(self) -> int:
+        """The current tree's allowance, in `restart_unit`s."""
+        if self.config.restart_schedule == "geometric":
+            return 1 << self.restarts
+        return luby(self.restarts + 1)
 
     def _new_root(self) -> DecisionNode:
         return DecisionNode(

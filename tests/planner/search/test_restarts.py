@@ -8,7 +8,7 @@ from collections.abc import Mapping
 import pytest
 
 from client.models import Value
-from planner.config import PlanConfig, SearchConfig
+from planner.config import ConfigError, PlanConfig, SearchConfig
 from planner.run import run_plan
 from planner.search import PWUCT
 from planner.search.analytic import AnalyticWorld, analytic_world
@@ -66,6 +66,19 @@ def test_the_tree_restarts_on_lubys_schedule_and_rollouts_count_across_trees():
     assert sampler.fresh_roots == [1, 6, 11, 21, 26, 31, 41, 61, 66, 71, 81, 86, 91]
     assert result.restarts == 12
     assert search.root.visits == 10
+
+
+def test_a_geometric_schedule_doubles_each_trees_allowance():
+    sampler = FirstChoices()
+    config = SearchConfig(restart_unit=5, restart_schedule="geometric")
+    result = PWUCT(Unplaceable(), sampler, seed=3, config=config).run(100)
+    assert sampler.fresh_roots == [1, 6, 16, 36, 76]  # trees of 5, 10, 20, 40 rollouts, then 80
+    assert result.restarts == 4
+
+
+def test_an_unknown_schedule_is_refused():
+    with pytest.raises(ConfigError, match="luby, geometric"):
+        PlanConfig().with_overrides({"search.restart_schedule": "fibonacci"})
 
 
 def test_without_a_unit_one_tree_serves_the_whole_run():
