@@ -88,13 +88,15 @@ class SearchConfig:
     next ones keep failing), not only through a categorical choice; off: such a child's outlook
     is the model's view below it, which an unfitted type leaves near its prior."""
 
-    restart_unit: int = 0
+    restart_unit: int = 64
     """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):
     at the end of each run the tree starts afresh and the knowledge base is kept. Rewards back
     up by max, so UCB keeps to a child whose rollouts once failed deepest (a grasp that lifts
     the body but can never place it); a fresh tree opens its first children with every failure
     learned so far. Luby's schedule is within a log factor of the best fixed schedule whatever
-    the distribution of run lengths. 0: one tree for the whole run (the paper)."""
+    the distribution of run lengths. It applies to every method alike, quasi-random included,
+    so that a guided method is compared with the same tree; 0: one tree for the whole run (the
+    paper, and the `-paper` presets)."""
     restart_schedule: str = "luby"
     """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
     units), so a task that needs one long tree loses at most the rollouts spent before it, at
@@ -294,6 +296,7 @@ class Preset:
 
 
 PRESETS: Mapping[str, Preset] = {
+    "quasi-random-paper": Preset("quasi-random", {"search.restart_unit": 0}),
     "cp-bo-paper": Preset(
         "cp-bo",
         {
@@ -316,7 +319,7 @@ PRESETS: Mapping[str, Preset] = {
     ),
 }
 """The paper's CP-BO changes only SAMPLE-NEW-CHILD: types activate when a failure is met, and
-the tree is plain PW-UCT."""
+the tree is plain PW-UCT; `quasi-random-paper` is the paper's baseline, the same tree."""
 
 
 def base_method(method: str) -> str:

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 import pytest
 
 from client.models import Value
-from planner.config import ConfigError, PlanConfig, SearchConfig
+from planner.config import ConfigError, PlanConfig, SearchConfig, method_config
 from planner.run import run_plan
 from planner.search import PWUCT
 from planner.search.analytic import AnalyticWorld, analytic_world
@@ -83,7 +83,8 @@ def test_an_unknown_schedule_is_refused():
 
 def test_without_a_unit_one_tree_serves_the_whole_run():
     sampler = FirstChoices()
-    result = PWUCT(Unplaceable(), sampler, seed=3).run(100)
+    config = SearchConfig(restart_unit=0)
+    result = PWUCT(Unplaceable(), sampler, seed=3, config=config).run(100)
     assert sampler.fresh_roots == [1]
     assert result.restarts == 0
 
@@ -101,3 +102,13 @@ def test_a_runs_record_notes_its_restarts():
     assert not result.solved
     assert "tree restarted 6 times" in result.notes  # runs 1,1,2,1,1,2 of the 10 rollouts
     assert result.config["search"]["restart_unit"] == 1
+
+
+def test_the_paper_presets_keep_one_tree_and_the_default_restarts():
+    assert PlanConfig().search.restart_unit > 0
+    for method in ("quasi-random-paper", "cp-bo-paper"):
+        assert method_config(method).search.restart_unit == 0
+    paper = run_plan(Unplaceable(), "quasi-random-paper", 3, max_rollouts=200)
+    assert paper.notes == [] and paper.config["search"]["restart_unit"] == 0
+    default = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=200)
+    assert any("tree restarted" in note for note in default.notes)
