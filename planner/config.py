@@ -94,9 +94,9 @@ class SearchConfig:
     up by max, so UCB keeps to a child whose rollouts once failed deepest (a grasp that lifts
     the body but can never place it); a fresh tree opens its first children with every failure
     learned so far. Luby's schedule is within a log factor of the best fixed schedule whatever
-    the distribution of run lengths. It applies to every method alike, quasi-random included,
-    so that a guided method is compared with the same tree; 0: one tree for the whole run (the
-    paper, and the `-paper` presets)."""
+    the distribution of run lengths. Only a sampler whose knowledge outlives the tree restarts
+    (cp-bo; `Sampler.keeps_knowledge`): quasi-random keeps nothing, and restarted it took more
+    rollouts. 0: one tree for the whole run (the paper, and `cp-bo-paper`)."""
     restart_schedule: str = "luby"
     """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
     units), so a task that needs one long tree loses at most the rollouts spent before it, at
@@ -296,7 +296,6 @@ class Preset:
 
 
 PRESETS: Mapping[str, Preset] = {
-    "quasi-random-paper": Preset("quasi-random", {"search.restart_unit": 0}),
     "cp-bo-paper": Preset(
         "cp-bo",
         {
@@ -319,7 +318,7 @@ PRESETS: Mapping[str, Preset] = {
     ),
 }
 """The paper's CP-BO changes only SAMPLE-NEW-CHILD: types activate when a failure is met, and
-the tree is plain PW-UCT; `quasi-random-paper` is the paper's baseline, the same tree."""
+the tree is plain PW-UCT."""
 
 
 def base_method(method: str) -> str:

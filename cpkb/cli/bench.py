@@ -67,9 +67,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=_csv_list(DEFAULT_METHODS),
         help="samplers, plus cp-bo-transfer (cp-bo after the task's predecessors, "
         "30 rollouts each, in the same knowledge base), cp-bo-paper (the paper's CP-BO: "
-        "cp-bo with every extension off), cp-bo-paper-transfer (the paper's CP-BO "
-        "Transfer) and quasi-random-paper (the paper's baseline: one tree, no restarts); "
-        f"default {DEFAULT_METHODS}",
+        "cp-bo with every extension off) and cp-bo-paper-transfer (the paper's CP-BO "
+        f"Transfer); default {DEFAULT_METHODS}",
     )
     parser.add_argument(
         "--seeds",

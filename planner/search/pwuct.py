@@ -11,8 +11,8 @@ it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`SearchConfig.outlook_ratio`; each rule has its switch).
-With `SearchConfig.restart_unit`, the tree is dropped and grown anew on Luby's (or a doubling)
-schedule; rollouts count across trees, and the sampler's knowledge carries over.
+With `SearchConfig.restart_unit` and a sampler whose knowledge outlives the tree, the tree is
+dropped and grown anew on Luby's (or a doubling) schedule; rollouts count across trees.
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ class PWUCT:
             if first is not None and stop_at_first:
                 break
             self._tree_rollouts += 1
-            unit = self.config.restart_unit
+            unit = self.config.restart_unit if self.sampler.keeps_knowledge else 0
             if (
                 unit
                 and self._tree_rollouts >= unit * self._tree_units()

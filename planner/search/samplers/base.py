@@ -45,6 +45,10 @@ class Proposal:
 
 class Sampler(Protocol):
     name: str
+    keeps_knowledge: bool
+    """Whether what it learns outlives the tree (in a knowledge base). Only then does the tree
+    restart (`SearchConfig.restart_unit`): a fresh tree of a sampler that keeps nothing throws
+    away every failure it has met, and measured so, quasi-random took more rollouts."""
 
     def propose(self, ctx: SampleContext) -> Value | Proposal:
         """A value for `ctx.var`, from its domain; never a sibling of a categorical variable."""

@@ -48,6 +48,7 @@ class _Continuation:
 
 class CpBoSampler:
     name = "cp-bo"
+    keeps_knowledge = True
 
     def __init__(
         self,

@@ -23,6 +23,7 @@ from planner.search.samplers.quasi_random import space_filling
 
 class MctsBoSampler:
     name = "mcts-bo"
+    keeps_knowledge = False
 
     def __init__(
         self,

@@ -52,6 +52,7 @@ def _key(path: dict[str, Value], value: Value) -> str:
 
 class OptunaTpeSampler:
     name = "optuna-tpe"
+    keeps_knowledge = False
 
     def __init__(self, *, seed: int, n_layers: int, config: OptunaTpeConfig | None = None) -> None:
         self.config = config if config is not None else OptunaTpeConfig()

@@ -64,6 +64,7 @@ def space_filling(
 
 class QuasiRandomSampler:
     name = "quasi-random"
+    keeps_knowledge = False
 
     def __init__(self, config: QuasiRandomConfig | None = None) -> None:
         self.config = config if config is not None else QuasiRandomConfig()

@@ -1,5 +1,6 @@
 """`search.restart_unit`: the tree is grown anew on Luby's schedule, rollouts count across
-trees, and a fresh tree's first child is sampled as a first child again."""
+trees, a fresh tree's first child is sampled as a first child again, and only a sampler that
+keeps its knowledge beyond the tree restarts."""
 
 from __future__ import annotations
 
@@ -26,6 +27,9 @@ class Unplaceable:
         self.name = "unplaceable-desk"
         self.skeleton = self.inner.skeleton
 
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.inner, name)
+
     def initial_state(self) -> object:
         return self.inner.initial_state()
 
@@ -38,10 +42,12 @@ class Unplaceable:
 
 
 class FirstChoices(QuasiRandomSampler):
-    """Quasi-random, noting the rollout of every grasp opened at a root with no children."""
+    """Quasi-random, noting the rollout of every grasp opened at a root with no children; by
+    default it claims to keep knowledge beyond the tree, as cp-bo does."""
 
-    def __init__(self) -> None:
+    def __init__(self, keeps_knowledge: bool = True) -> None:
         super().__init__()
+        self.keeps_knowledge = keeps_knowledge
         self.fresh_roots: list[int] = []
 
     def propose(self, ctx: SampleContext) -> Value:
@@ -81,9 +87,13 @@ def test_an_unknown_schedule_is_refused():
         PlanConfig().with_overrides({"search.restart_schedule": "fibonacci"})
 
 
-def test_without_a_unit_one_tree_serves_the_whole_run():
-    sampler = FirstChoices()
-    config = SearchConfig(restart_unit=0)
+@pytest.mark.parametrize(
+    ("config", "keeps_knowledge"),
+    [(SearchConfig(restart_unit=0), True), (SearchConfig(restart_unit=5), False)],
+    ids=["no unit", "a sampler that keeps nothing"],
+)
+def test_one_tree_serves_the_whole_run(config: SearchConfig, keeps_knowledge: bool):
+    sampler = FirstChoices(keeps_knowledge)
     result = PWUCT(Unplaceable(), sampler, seed=3, config=config).run(100)
     assert sampler.fresh_roots == [1]
     assert result.restarts == 0
@@ -91,24 +101,22 @@ def test_without_a_unit_one_tree_serves_the_whole_run():
 
 def test_a_restarting_search_still_solves():
     result = PWUCT(
-        analytic_world("desk"), QuasiRandomSampler(), seed=4, config=SearchConfig(restart_unit=2)
+        analytic_world("desk"), FirstChoices(), seed=4, config=SearchConfig(restart_unit=2)
     ).run(2000)
     assert result.solved
 
 
-def test_a_runs_record_notes_its_restarts():
+def test_a_cp_bo_run_restarts_by_default_and_records_it(live_kb):
+    assert PlanConfig().search.restart_unit > 0
+    assert method_config("cp-bo-paper").search.restart_unit == 0
     config = PlanConfig().with_overrides({"search.restart_unit": 1})
-    result = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=10, config=config)
-    assert not result.solved
+    common = {"max_rollouts": 10, "kb_url": live_kb.url, "kb": live_kb.name, "config": config}
+    result = run_plan(Unplaceable(), "cp-bo", 3, **common)
+    assert not result.solved and result.kb_errors == 0
     assert "tree restarted 6 times" in result.notes  # runs 1,1,2,1,1,2 of the 10 rollouts
     assert result.config["search"]["restart_unit"] == 1
-
-
-def test_the_paper_presets_keep_one_tree_and_the_default_restarts():
-    assert PlanConfig().search.restart_unit > 0
-    for method in ("quasi-random-paper", "cp-bo-paper"):
-        assert method_config(method).search.restart_unit == 0
-    paper = run_plan(Unplaceable(), "quasi-random-paper", 3, max_rollouts=200)
-    assert paper.notes == [] and paper.config["search"]["restart_unit"] == 0
-    default = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=200)
-    assert any("tree restarted" in note for note in default.notes)
+    paper = run_plan(Unplaceable(), "cp-bo-paper", 3, **common)
+    assert not any("restarted" in note for note in paper.notes)
+    assert paper.config["search"]["restart_unit"] == 0
+    plain = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=200)
+    assert not any("restarted" in note for note in plain.notes)
