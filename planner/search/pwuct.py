@@ -112,6 +112,8 @@ class PWUCT:
         self.decisions = world.skeleton.decisions
         self.n_layers = len(world.skeleton.layers)
         self.root = self._new_root()
+        # Only a sampler whose knowledge outlives the tree restarts (`Sampler.keeps_knowledge`).
+        self._restart_unit = self.config.restart_unit if sampler.keeps_knowledge else 0
         self.restarts = 0
         self._tree_rollouts = 0
         self.rollout = 0
@@ -144,10 +146,9 @@ class PWUCT:
             if first is not None and stop_at_first:
                 break
             self._tree_rollouts += 1
-            unit = self.config.restart_unit if self.sampler.keeps_knowledge else 0
             if (
-                unit
-                and self._tree_rollouts >= unit * self._tree_units()
+                self._restart_unit
+                and self._tree_rollouts >= self._restart_unit * self._tree_units()
                 and self.rollout < max_rollouts
             ):
                 self.root = self._new_root()

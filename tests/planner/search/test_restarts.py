@@ -30,9 +30,6 @@ class Unplaceable:
     def __getattr__(self, name: str) -> object:
         return getattr(self.inner, name)
 
-    def initial_state(self) -> object:
-        return self.inner.initial_state()
-
     def transition(
         self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
     ) -> TransitionOutcome:
