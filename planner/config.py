@@ -224,6 +224,11 @@ class KnowledgeConfig:
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
     same name (`planner.failures.graphs`); the paper labels by name."""
+    size_inputs: bool = False
+    """A movable body's size `(x, y, z)` is an input of the models of the types it appears in
+    (fixed at suggestion time, like earlier decisions), instead of being ignored (a name) or
+    part of the type (`body_sizes`): knowledge transfers between boxes of one name as far as
+    the fit finds their points agree (`planner.failures.graphs`). The paper has no such input."""
     prior_base_rate: bool = False
     """A type whose points are all of one class (or too few to fit) is rated around its own
     rate of feasible points, `(a + 1) / (n + 2)`, instead of 0.5, in this planner's MPF
@@ -313,6 +318,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
             "knowledge.body_sizes": False,
+            "knowledge.size_inputs": False,
             "knowledge.prior_base_rate": False,
         },
     ),

@@ -32,6 +32,11 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   that a type is about one object, not about whatever another task calls by the same name: a
   task that reuses `body` for a box of other dimensions meets other constraints, and its
   points would mislead the first task's model.
+- Or a movable body's size can be an input of the type's model (`size_inputs`): a decision
+  vertex `#size:<body>` below the body's vertex, bound to the constant `size_var(body)`, which
+  every point records and every suggestion fixes. Boxes of one name then share a type, and the
+  fit learns from the points of both how far what one taught carries to the other, where an
+  exact label cuts it off and a plain name carries it whole.
 """
 
 from __future__ import annotations
@@ -48,6 +53,21 @@ PLACE_KINDS = ("#pose",)
 GRASP_KINDS = ("#dir",)
 SQUARE_TOLERANCE = 1e-3
 """Metres by which a footprint's sides may differ and it still counts as square."""
+SIZE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[0.5, 0.5, 0.5])
+"""A body's size `(x, y, z)` in metres as a model input: one domain for every body, so that the
+same failure of boxes of different sizes is one type."""
+SIZE_LABEL = "#size:"
+
+
+def size_var(body: str) -> str:
+    """The constant a size vertex is bound to: not a decision of the skeleton, the same value in
+    every binding of a task (`size_constants`)."""
+    return f"size({body})"
+
+
+def size_constants(geometry: WorldGeometry) -> dict[str, list[float]]:
+    """The values of the size constants of a world's movable bodies."""
+    return {size_var(body): list(size) for body, size in geometry.body_sizes}
 
 
 @dataclass(frozen=True)
@@ -60,6 +80,7 @@ class Encodings:
     grasp_symmetry: bool = True
     metric_frames: bool = True
     body_sizes: bool = False
+    size_inputs: bool = False
 
 
 @dataclass(frozen=True)
@@ -274,6 +295,9 @@ def failure_graph(
         _label_sizes(builder.nodes, encodings.geometry)
     domains = encoded_domains(skeleton, check.call, builder.decisions, encodings)
     bind = label_decisions(skeleton, builder.nodes, builder.decisions, domains)
+    if encodings.size_inputs and bind:
+        # A graph with no decision stays one the search cannot act on: no size makes it one.
+        bind |= _size_inputs(builder, encodings.geometry)
     graph = _task_independent_ids(builder.nodes, builder.edges)
     return FailureGraph(graph, bind, (transition_index, call_index), body)
 
@@ -285,6 +309,21 @@ def _label_sizes(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
         if size is not None:
             mm = "x".join(str(round(v * 1000)) for v in size)
             nodes[node_id] = node.model_copy(update={"label": f"{node.label}@{mm}mm"})
+
+
+def _size_inputs(builder: _Builder, geometry: WorldGeometry) -> dict[str, str]:
+    """A size decision vertex under each movable body's context vertex (`Encodings.size_inputs`),
+    and its binding to the body's size constant."""
+    bind: dict[str, str] = {}
+    for node_id, node in list(builder.nodes.items()):
+        if node.role != "context" or geometry.size(node.label) is None:
+            continue
+        label = f"{SIZE_LABEL}{node.label}"
+        size_id = f"d:{size_var(node.label)}"
+        builder.nodes[size_id] = Node(id=size_id, role="decision", label=label, domain=SIZE_DOMAIN)
+        builder.edge(node_id, size_id, "size")
+        bind[label] = size_var(node.label)
+    return bind
 
 
 def _task_independent_ids(nodes: dict[str, Node], edges: list[Edge]) -> Graph:

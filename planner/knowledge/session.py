@@ -38,7 +38,7 @@ from client.models import (
     Value,
 )
 from planner.config import KnowledgeConfig
-from planner.failures import Encodings, FailureGraph, failure_graph
+from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
 from planner.knowledge.live import LiveFeed, PendingExchange
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
@@ -163,6 +163,11 @@ class KnowledgeSession:
             grasp_symmetry=self.config.grasp_symmetry,
             metric_frames=self.config.metric_frames,
             body_sizes=self.config.body_sizes,
+            size_inputs=self.config.size_inputs,
+        )
+        # Inputs of the models that are not decisions: in every point, fixed in every request.
+        self._constants: dict[str, Value] = (
+            dict(size_constants(world.geometry)) if self.config.size_inputs else {}
         )
         self._graphs = _task_graphs(repr(self.skeleton), self._encodings)
         self._active: dict[Key, Activation] = {}
@@ -302,7 +307,7 @@ class KnowledgeSession:
         for position, check in enumerate(outcome.checks):
             if check.ok:
                 for key, activation in self._by_check.get((index, position), ()):
-                    x = activation.failure.x(bindings)
+                    x = activation.failure.x({**bindings, **self._constants})
                     self._pending.append((key, activation.failure, x, True))
                 continue
             culprit = check.culprits[0].body if check.culprits else None
@@ -310,7 +315,7 @@ class KnowledgeSession:
             fg = self._graph(key, index, check, culprit)
             if not fg.bind:
                 continue
-            self._pending.append((key, fg, fg.x(bindings), False))
+            self._pending.append((key, fg, fg.x({**bindings, **self._constants}), False))
             if key not in self._active:
                 self._unmatched[key] = fg
 
@@ -413,7 +418,7 @@ class KnowledgeSession:
         can follow is avoided at the grasp), and then every type on those later decisions, so
         that the continuation is feasible as a whole (pack's first box leaves room for the second
         and the third side by side, not for each of them on the same spot)."""
-        known = {*path, var}
+        known = {*path, *self._constants, var}
         chosen = [a for a in self._active.values() if var in a.vars]
         if self.lookahead:
             reached = {v for a in chosen for v in a.vars} | known
@@ -457,10 +462,11 @@ class KnowledgeSession:
         """The MPF suggestion of the service (with `n > 1`, a batch of spread points), or None
         if the service could not answer."""
         bound = {v for c in constraints for v in c.bind.values()} - {var.var}
-        later = sorted(bound - set(path))
+        given = {**self._constants, **path}
+        later = sorted(bound - set(given))
         request = SuggestIn(
             space={var.var: var.domain} | {v: self._domains[v] for v in later},
-            fixed={v: path[v] for v in sorted(bound & set(path))},
+            fixed={v: given[v] for v in sorted(bound & set(given))},
             constraints=constraints,
             exclude=[{var.var: value} for value in siblings],
             lookahead=later,
