@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from client.models import CategoricalDomain, ContinuousDomain
-from planner.failures import Encodings, failure_graph
+from planner.failures import Encodings, failure_graph, size_constants
+from planner.failures.graphs import SIZE_DOMAIN, size_var
 from planner.search.analytic import GRASP_DOMAIN, analytic_world, pick_place_skeleton
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
 from planner.tasks import grasp_domain, pose_domain
@@ -270,3 +271,42 @@ def test_with_body_sizes_a_type_is_about_one_object_not_one_name():
     assert roles(small)["context"] == {"body@42x37x147mm", "pose0", "obstacle2"}
     assert graph((0.042, 0.037, 0.147), on=False) == graph((0.044, 0.049, 0.172), on=False)
     assert "body" in roles(graph((0.042, 0.037, 0.147), on=False))["context"]
+
+
+def test_with_size_inputs_boxes_of_one_name_share_a_type_and_their_sizes_are_inputs():
+    """The size is a decision vertex of the graph (one domain for every box, so one type for
+    boxes of any size), bound to the body's size constant; a point records the size."""
+    world = analytic_world("desk")
+    outcome = world.transition(1, {"#dir1": "top", "#pose12": [0.0, 1.0, 0.5]}, None)
+
+    def failure(size: tuple[float, float, float]):
+        geometry = WorldGeometry(body_sizes=(("body", size),))
+        fg = failure_graph(
+            world.skeleton, 1, outcome.failed, encodings=Encodings(geometry, size_inputs=True)
+        )
+        return fg, geometry
+
+    small, small_geometry = failure((0.042, 0.037, 0.147))
+    large, _ = failure((0.044, 0.049, 0.172))
+    assert small.graph == large.graph
+    size_node = next(n for n in small.graph.nodes if n.label == "#size:body")
+    assert size_node.role == "decision" and size_node.domain == SIZE_DOMAIN
+    assert small.bind["#size:body"] == size_var("body")
+    assert set(roles(small.graph)["decision"]) == {"#dir", "#pose", "#size:body"}
+    bindings = {"#dir1": "top", "#pose12": [0.0, 1.0, 0.5], **size_constants(small_geometry)}
+    assert small.x(bindings)["#size:body"] == [0.042, 0.037, 0.147]
+    plain = failure_graph(world.skeleton, 1, outcome.failed, encodings=Encodings(small_geometry))
+    assert "#size:body" not in plain.bind  # off by default: the name alone (the paper's)
+
+
+def test_size_inputs_make_no_graph_of_a_failure_without_decisions():
+    """A pick from a fixed pose with a fixed grasp fails with nothing the search chooses: its
+    graph stays without a binding, size or not, so it is never posted."""
+    call = OperatorCall("Inv-kin", ("body", "pose0", "top"), ("#config1",))
+    skeleton = Skeleton((Layer("transition", (call,)),))
+    geometry = WorldGeometry(body_sizes=(("body", (0.04, 0.04, 0.1)),))
+    fg = failure_graph(
+        skeleton, 0, CheckResult(call, False), encodings=Encodings(geometry, size_inputs=True)
+    )
+    assert fg.bind == {}
+    assert all(n.role != "decision" for n in fg.graph.nodes)

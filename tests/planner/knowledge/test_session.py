@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from client import CpkbClient
 from planner.failures import failure_graph
+from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.run import run_plan
 from planner.search import PWUCT
@@ -208,3 +211,41 @@ def test_a_failure_prematch_found_absent_becomes_a_type_without_asking_again(liv
             client.match_types(live_kb.name, [a.failure.graph])[0].type_id
             for a in session._active.values()
         } == stored
+
+
+def sized_desk(size: tuple[float, float, float]):
+    return replace(analytic_world("desk"), geometry=WorldGeometry(body_sizes=(("body", size),)))
+
+
+def test_with_size_inputs_a_box_of_another_size_uses_the_first_ones_points(live_kb):
+    """Points record the body's size; a task with a box of another size under the same name
+    takes up the same types before any failure, and its suggestions hold its size fixed."""
+    small, large = (0.04, 0.04, 0.15), (0.05, 0.06, 0.2)
+    config = KnowledgeConfig(size_inputs=True)
+    with CpkbClient(live_kb.url) as client:
+        first = KnowledgeSession(
+            client, live_kb.name, sized_desk(small), background=False, config=config
+        )
+        first.prematch()
+        PWUCT(first.world, QuasiRandomSampler(), seed=0, observer=first).run(
+            40, stop_at_first=False
+        )
+        first.close()
+        shelf = next(t for t in client.list_types(live_kb.name) if "shelf" in t.context)
+        assert set(shelf.decisions) == {"#dir", "#pose", "#size:body"}
+        sizes = {tuple(p.x["#size:body"]) for p in client.iter_points(live_kb.name, shelf.type_id)}
+        assert sizes == {small}
+
+        second = KnowledgeSession(
+            client, live_kb.name, sized_desk(large), background=False, config=config
+        )
+        second.prematch()
+        assert second.stats.types_activated > 0 and shelf.type_id in second._types
+        place = second.skeleton.decisions[1]
+        constraints = second.constraints_at(place.var, {"#dir1": "top"})
+        assert {c.type_id for c in constraints} >= {shelf.type_id}
+        answer = second.suggest(place, {"#dir1": "top"}, [], constraints, seed=0)
+        # The size is bound in the request (fixed, not searched): else it would not validate.
+        assert answer is not None and answer.method == "mpf-local" and set(answer.x) == {place.var}
+        assert second.stats.errors == 0
+        second.close()
