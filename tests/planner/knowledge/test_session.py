@@ -7,8 +7,8 @@ from dataclasses import replace
 import pytest
 
 from client import CpkbClient
-from planner.failures import failure_graph
 from planner.config import KnowledgeConfig
+from planner.failures import failure_graph
 from planner.knowledge import KnowledgeSession
 from planner.run import run_plan
 from planner.search import PWUCT
