@@ -53,9 +53,11 @@ PLACE_KINDS = ("#pose",)
 GRASP_KINDS = ("#dir",)
 SQUARE_TOLERANCE = 1e-3
 """Metres by which a footprint's sides may differ and it still counts as square."""
-SIZE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[0.5, 0.5, 0.5])
+SIZE_MAX = 0.5
+SIZE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[SIZE_MAX] * 3)
 """A body's size `(x, y, z)` in metres as a model input: one domain for every body, so that the
-same failure of boxes of different sizes is one type."""
+same failure of boxes of different sizes is one type. A body larger than `SIZE_MAX` in any
+dimension (beyond what a tabletop arm carries) keeps its name alone."""
 SIZE_LABEL = "#size:"
 
 
@@ -316,7 +318,8 @@ def _size_inputs(builder: _Builder, geometry: WorldGeometry) -> dict[str, str]:
     and its binding to the body's size constant."""
     bind: dict[str, str] = {}
     for node_id, node in list(builder.nodes.items()):
-        if node.role != "context" or geometry.size(node.label) is None:
+        size = geometry.size(node.label) if node.role == "context" else None
+        if size is None or max(size) > SIZE_MAX:
             continue
         label = f"{SIZE_LABEL}{node.label}"
         size_id = f"d:{size_var(node.label)}"

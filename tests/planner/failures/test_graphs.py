@@ -297,6 +297,8 @@ def test_with_size_inputs_boxes_of_one_name_share_a_type_and_their_sizes_are_inp
     assert small.x(bindings)["#size:body"] == [0.042, 0.037, 0.147]
     plain = failure_graph(world.skeleton, 1, outcome.failed, encodings=Encodings(small_geometry))
     assert "#size:body" not in plain.bind  # off by default: the name alone (the paper's)
+    huge, _ = failure((0.6, 0.05, 0.1))  # beyond the size domain: the name alone
+    assert "#size:body" not in huge.bind and "#pose" in huge.bind
 
 
 def test_size_inputs_make_no_graph_of_a_failure_without_decisions():
