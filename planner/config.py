@@ -245,6 +245,13 @@ class KnowledgeConfig:
     but for one background poll per rollout (BENCHMARKS.md, issue 23)."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
+    live_hints: int = 0
+    """With `live_points`, the newest other planners' feasible points kept per type, scored as
+    candidates by this planner's MPF maximisation (each run's merged into one, its latest
+    chain of passed decisions), so that a binding another planner found is tried here before a
+    fit has taken it in (`planner.knowledge.live.PeerHints`); 0: none."""
+    live_hints_limit: int = 32
+    """The most such candidates one suggestion scores (the newest first)."""
     live_pending: bool = False
     """With `live_points`, also report this planner's pending suggestions to the service and
     keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
@@ -252,7 +259,15 @@ class KnowledgeConfig:
     the others are about to try cost pack rollouts (BENCHMARKS.md, issue 23)."""
 
     def __post_init__(self) -> None:
-        _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0, live_every_rollouts=1)
+        _at_least(
+            self,
+            refresh_rollouts=0,
+            match_chunk=1,
+            fit_wait_s=0.0,
+            live_every_rollouts=1,
+            live_hints=0,
+            live_hints_limit=1,
+        )
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
 

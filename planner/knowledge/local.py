@@ -264,9 +264,17 @@ class LocalSurrogates:
             for p in others
         ]
 
-    def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
+    def suggest(
+        self,
+        request: SuggestIn,
+        rollout: int,
+        stored: int,
+        hints: Callable[[list[Constraint], set[str]], list[dict[str, Value]]] | None = None,
+    ) -> SuggestOut:
         """What the service's `suggest` would answer to this planner alone. `stored`: the last
-        poster batch the service has taken in (its points are in a fetched model)."""
+        poster batch the service has taken in (its points are in a fetched model); `hints`:
+        points worth scoring, given the request's constraints and free variables
+        (`planner.knowledge.live.PeerHints.for_request`)."""
         type_ids = list(dict.fromkeys(c.type_id for c in request.constraints))
         self._land()
         missing = [t for t in type_ids if t not in self._models]
@@ -283,6 +291,9 @@ class LocalSurrogates:
             key=PENDING_KEY,
             config=self._config,
             shared=shared,
+            hints=hints(request.constraints, set(request.space) - set(request.fixed))
+            if hints is not None
+            else (),
         )
         self.shared_used += len(shared)
         out = answer.to_json()
