@@ -263,15 +263,17 @@ def maximize_batch(
     n: int = 1,
     distinct: Sequence[str] | None = None,
     hints: Sequence[Mapping[str, Value]] = (),
+    preferred: int = 0,
 ) -> list[Suggestion]:
     """Up to `n` points, the first as `maximize` answers; each next one is chosen from the same
     candidates as if the ones before were excluded (on the variables `distinct`, default all free
     ones), so a batch is spread like successive suggestions at one node, for one optimisation.
     Fewer than `n` only when a finite space runs out. `hints`: points (of some free variables)
-    where the constraints are known to have held, such as a binding another planner found:
-    scored too (a narrow feasible region around one known point is easily missed by the raw
-    samples), and the batch's first point is the best of them when it is as good as the best
-    candidate by the margin rule, rather than the most spread of those."""
+    where constraints are known to have held, such as bindings other planners passed: scored
+    too (a narrow feasible region around one known point is easily missed by the raw samples).
+    The batch's first point is the best of the first `preferred` hints (those known to satisfy
+    every constraint weighed) when it is as good as the best candidate by the margin rule,
+    rather than the most spread of those."""
     config = config or OptimizerConfig()
     fixed = fixed or {}
     free, fixed_in_space = _split(space, fixed)
@@ -284,7 +286,8 @@ def maximize_batch(
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes, n_hinted = _candidates(genome, free, scorer, config, seed, hints)
-    hinted = np.arange(len(genes)) >= len(genes) - n_hinted  # `_candidates` ends with them
+    rows = np.arange(len(genes)) - (len(genes) - n_hinted)  # `_candidates` ends with the hints
+    hinted = (rows >= 0) & (rows < preferred)
     ok = ~avoid.excluded(genome.columns(genes))
     if not ok.any():
         if _finite_size(free) is not None:
@@ -324,7 +327,7 @@ def _select(
     everything as almost surely infeasible: the argmax of such a surface is only its tail
     nearest some feasible point (often one of another grasp or task), and the children piled
     there fail together; among near-equal values, spreading is the better bet. A `prefer`red
-    candidate among the near ones (a hint) wins, the best scored: it is known to be feasible."""
+    candidate among the near ones wins, the best scored: it is known to be feasible."""
     if margin <= 0 and margin_abs <= 0:
         return int(np.argmax(np.where(ok, score, -np.inf)))
     best = raw[ok].max()

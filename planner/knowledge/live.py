@@ -191,15 +191,22 @@ class PeerHints:
         kept.append((point.point_id, point.run, dict(point.x)))
         del kept[: -self.per_type]
 
-    def for_request(self, constraints: list[Constraint], free: set[str]) -> list[dict[str, Value]]:
+    def for_request(
+        self, constraints: list[Constraint], free: set[str]
+    ) -> tuple[list[dict[str, Value]], int]:
         """The kept points in the request's free variables, through each constraint binding
-        their type; first, per other run, its points merged (each variable at its newest value),
-        so that the chain of decisions a run last passed (its binding, once it has one) is one
-        candidate rather than scattered parts. At most `limit`, the newest first."""
+        their type, and how many of them, the first, to prefer. First come, per other run, its
+        points merged (each variable at its newest value), so that the chain of decisions a run
+        last passed (its binding, once it has one) is one candidate rather than scattered parts;
+        such a chain is preferred when the run passed every constraint of the request and it
+        gives every free variable: a point that passed one constraint is a candidate only, as
+        where one box fits may be where the next cannot. At most `limit`, the newest first."""
         parts: list[tuple[int, str | None, dict[str, Value]]] = []
+        passed: dict[str | None, set[str]] = {}
         for constraint in constraints:
             bind = constraint.bind
             for point_id, run, x in self._points.get(constraint.type_id, ()):
+                passed.setdefault(run, set()).add(constraint.type_id)
                 hint = {bind[k]: v for k, v in x.items() if bind.get(k) in free}
                 if hint:
                     parts.append((point_id, run, hint))
@@ -207,11 +214,17 @@ class PeerHints:
         merged: dict[str | None, dict[str, Value]] = {}
         for _, run, hint in parts:
             merged.setdefault(run, {}).update(hint)
-        newest_runs = list(dict.fromkeys(run for _, run, _ in reversed(parts)))
+        wanted = {c.type_id for c in constraints}
+        runs = list(dict.fromkeys(run for _, run, _ in reversed(parts)))
+        whole = [merged[r] for r in runs if passed[r] >= wanted and set(merged[r]) >= free]
         hints: list[dict[str, Value]] = []
-        for hint in [*(merged[r] for r in newest_runs), *(h for *_, h in reversed(parts))]:
+        for hint in whole:
+            if hint not in hints:
+                hints.append(hint)
+        preferred = len(hints)
+        for hint in [*(merged[r] for r in runs), *(h for *_, h in reversed(parts))]:
             if hint not in hints:
                 hints.append(hint)
         hints = hints[: self.limit]
         self.used += len(hints)
-        return hints
+        return hints, min(preferred, len(hints))

@@ -261,7 +261,7 @@ def test_a_hint_is_never_an_excluded_point_nor_preferred_when_clearly_worse() ->
     assert found[0].x != elsewhere and found[0].value > 0.4
 
 
-def test_among_near_equal_candidates_a_hint_wins_over_the_most_spread() -> None:
+def test_among_near_equal_candidates_a_preferred_hint_wins_over_the_most_spread() -> None:
     encoder = SpaceEncoder(HINT_SPACE)
     none = np.zeros((0, encoder.dim))
     bind = {k: k for k in HINT_SPACE}
@@ -270,5 +270,7 @@ def test_among_near_equal_candidates_a_hint_wins_over_the_most_spread() -> None:
     near_it = {"dir": "back", "pose": [1.1, 0.5, 0.5, 0.5]}
     spread = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2)
     assert spread[0].x != near_it
-    hinted = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it])
+    scored = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it])
+    assert scored[0].x == spread[0].x  # a hint only scored: the most spread still wins
+    hinted = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it], preferred=1)
     assert hinted[0].x["pose"] == pytest.approx(near_it["pose"])

@@ -29,29 +29,33 @@ def test_hints_map_each_point_through_the_binds_and_merge_each_run_newest_first(
         Constraint(type_id="grasp", bind={"#dir": "#dir1"}),
         Constraint(type_id="place", bind={"#dir": "#dir1", "#pose": "#pose12"}),
     ]
-    found = hints.for_request(constraints, {"#dir1", "#pose12"})
+    found, preferred = hints.for_request(constraints, {"#dir1", "#pose12"})
     assert found[:2] == [
-        {"#dir1": "left", "#pose12": [0.5, 0.5]},  # run b, the newest
-        {"#dir1": "front", "#pose12": [0.1, 0.2]},  # run a, its points merged
+        {"#dir1": "front", "#pose12": [0.1, 0.2]},  # run a passed both: its chain, preferred
+        {"#dir1": "left", "#pose12": [0.5, 0.5]},  # run b, the newest, passed one of them
     ]
+    assert preferred == 1
     assert {"#dir1": "front"} in found[2:]
     assert hints.used == len(found)
     # A fixed variable is not the hint's to give; a type the request does not bind gives none.
-    fixed = hints.for_request(constraints[1:], {"#pose12"})
-    assert fixed[0] == {"#pose12": [0.5, 0.5]} and {"#dir1": "front"} not in fixed
-    assert hints.for_request([Constraint(type_id="other", bind={"#dir": "#dir1"})], {"#dir1"}) == []
+    fixed, preferred = hints.for_request(constraints[1:], {"#pose12"})
+    assert fixed[:2] == [{"#pose12": [0.5, 0.5]}, {"#pose12": [0.1, 0.2]}] and preferred == 2
+    assert {"#dir1": "front"} not in fixed
+    other = [Constraint(type_id="other", bind={"#dir": "#dir1"})]
+    assert hints.for_request(other, {"#dir1"}) == ([], 0)
 
 
 def test_hints_keep_the_newest_per_type_and_at_most_the_limit() -> None:
     hints = PeerHints(per_type=2, limit=3)
     for i in range(5):
         hints.add(_point(i, "place", {"#pose": [i / 10]}, run=f"r{i}"))
-    found = hints.for_request([Constraint(type_id="place", bind={"#pose": "p"})], {"p"})
+    found, _ = hints.for_request([Constraint(type_id="place", bind={"#pose": "p"})], {"p"})
     assert found == [{"p": [0.4]}, {"p": [0.3]}]
     for i in range(5, 10):
         hints.add(_point(i, f"t{i}", {"#pose": [i / 10]}, run=f"r{i}"))
     many = [Constraint(type_id=f"t{i}", bind={"#pose": "p"}) for i in range(5, 10)]
-    assert len(hints.for_request(many, {"p"})) == 3
+    found, preferred = hints.for_request(many, {"p"})
+    assert len(found) == 3 and preferred == 0  # no run passed all five
 
 
 def _place(session: KnowledgeSession, pose: list[float], rollout: int) -> bool:
