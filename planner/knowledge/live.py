@@ -178,9 +178,10 @@ class PeerHints:
     """The newest `per_type` feasible points of each type that other planners stored, as
     candidates (hints) for the MPF maximisation of a request that binds the type."""
 
-    def __init__(self, per_type: int, limit: int) -> None:
+    def __init__(self, per_type: int, limit: int, whole_only: bool = False) -> None:
         self.per_type = per_type
         self.limit = limit
+        self.whole_only = whole_only
         self._points: dict[str, list[tuple[int, str | None, dict[str, Value]]]] = {}
         self.used = 0  # hints handed to suggestions
 
@@ -195,12 +196,12 @@ class PeerHints:
         self, constraints: list[Constraint], free: set[str]
     ) -> tuple[list[dict[str, Value]], int]:
         """The kept points in the request's free variables, through each constraint binding
-        their type, and how many of them, the first, to prefer. First come, per other run, its
-        points merged (each variable at its newest value), so that the chain of decisions a run
-        last passed (its binding, once it has one) is one candidate rather than scattered parts;
-        such a chain is preferred when the run passed every constraint of the request and it
-        gives every free variable: a point that passed one constraint is a candidate only, as
-        where one box fits may be where the next cannot. At most `limit`, the newest first."""
+        their type, and how many of them, the first, to prefer (all, or with `whole_only` the
+        whole chains). First come, per other run, its points merged (each variable at its newest
+        value), so that the chain of decisions a run last passed (its binding, once it has one)
+        is one candidate rather than scattered parts; the whole chains (the run passed every
+        constraint of the request, and the chain gives every free variable) lead. At most
+        `limit`, the newest first."""
         parts: list[tuple[int, str | None, dict[str, Value]]] = []
         passed: dict[str | None, set[str]] = {}
         for constraint in constraints:
@@ -227,4 +228,4 @@ class PeerHints:
                 hints.append(hint)
         hints = hints[: self.limit]
         self.used += len(hints)
-        return hints, min(preferred, len(hints))
+        return hints, min(preferred, len(hints)) if self.whole_only else len(hints)

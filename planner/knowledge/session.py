@@ -204,7 +204,11 @@ class KnowledgeSession:
             else None
         )
         self.hints = (
-            PeerHints(self.config.live_hints, self.config.live_hints_limit)
+            PeerHints(
+                self.config.live_hints,
+                self.config.live_hints_limit,
+                whole_only=self.config.live_hints_whole_only,
+            )
             if self.live is not None and self.config.live_hints > 0
             else None
         )

@@ -19,8 +19,8 @@ def _point(
     return LivePoint(point_id=point_id, type_id=type_id, x=x, feasible=feasible, run=run)
 
 
-def test_hints_map_each_point_through_the_binds_and_merge_each_run_newest_first() -> None:
-    hints = PeerHints(per_type=2, limit=10)
+def test_hints_map_each_point_through_the_binds_and_merge_each_run_whole_first() -> None:
+    hints = PeerHints(per_type=2, limit=10, whole_only=True)
     hints.add(_point(1, "grasp", {"#dir": "front"}))
     hints.add(_point(2, "place", {"#dir": "front", "#pose": [0.1, 0.2]}))
     hints.add(_point(3, "grasp", {"#dir": "top"}, feasible=False))  # a failure: no hint
@@ -46,7 +46,7 @@ def test_hints_map_each_point_through_the_binds_and_merge_each_run_newest_first(
 
 
 def test_hints_keep_the_newest_per_type_and_at_most_the_limit() -> None:
-    hints = PeerHints(per_type=2, limit=3)
+    hints = PeerHints(per_type=2, limit=3, whole_only=True)
     for i in range(5):
         hints.add(_point(i, "place", {"#pose": [i / 10]}, run=f"r{i}"))
     found, _ = hints.for_request([Constraint(type_id="place", bind={"#pose": "p"})], {"p"})
@@ -56,6 +56,8 @@ def test_hints_keep_the_newest_per_type_and_at_most_the_limit() -> None:
     many = [Constraint(type_id=f"t{i}", bind={"#pose": "p"}) for i in range(5, 10)]
     found, preferred = hints.for_request(many, {"p"})
     assert len(found) == 3 and preferred == 0  # no run passed all five
+    hints.whole_only = False
+    assert hints.for_request(many, {"p"}) == (found, 3)  # else every hint is preferred
 
 
 def _place(session: KnowledgeSession, pose: list[float], rollout: int) -> bool:
@@ -83,6 +85,7 @@ def test_a_placement_another_planner_found_is_this_planners_next_suggestion(live
     world = analytic_world("desk")
     bad, good = _poses(world, feasible=False), _poses(world, feasible=True)
     config = KnowledgeConfig(live_points=True, refresh_rollouts=10**6, live_hints=4)
+    without = KnowledgeConfig(live_points=True, live_hints=0)
     with CpkbClient(live_kb.url) as client:
         sessions = {
             hints: KnowledgeSession(
@@ -90,7 +93,7 @@ def test_a_placement_another_planner_found_is_this_planners_next_suggestion(live
                 live_kb.name,
                 analytic_world("desk"),
                 background=False,
-                config=config if hints else KnowledgeConfig(live_points=True),
+                config=config if hints else without,
             )
             for hints in (True, False)
         }
