@@ -250,7 +250,8 @@ class KnowledgeConfig:
     candidates by this planner's MPF maximisation (each run's also merged into one, its latest
     chain of passed decisions) and preferred among the near-best ones, so that a binding another
     planner found is tried here before a fit has taken it in
-    (`planner.knowledge.live.PeerHints`); 0: none. On: planners at once took fewer rollouts
+    (`planner.knowledge.live.PeerHints`; where the planner maximises MPF itself, the
+    default `--suggest-in planner`); 0: none. On: planners at once took fewer rollouts
     with them than without, at 4 and at 8 at once; a planner alone gets none
     (BENCHMARKS.md, issue 23)."""
     live_hints_limit: int = 32
