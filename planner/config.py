@@ -250,6 +250,20 @@ class KnowledgeConfig:
     but for one background poll per rollout (BENCHMARKS.md, issue 23)."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
+    live_hints: int = 8
+    """With `live_points`, the newest other planners' feasible points kept per type, scored as
+    candidates by this planner's MPF maximisation (each run's also merged into one, its latest
+    chain of passed decisions) and preferred among the near-best ones, so that a binding another
+    planner found is tried here before a fit has taken it in
+    (`planner.knowledge.live.PeerHints`; where the planner maximises MPF itself, the
+    default `--suggest-in planner`); 0: none. On: planners at once took fewer rollouts
+    with them than without, at 4 and at 8 at once; a planner alone gets none
+    (BENCHMARKS.md, issue 23)."""
+    live_hints_limit: int = 32
+    """The most such candidates one suggestion scores (the newest first)."""
+    live_hints_whole_only: bool = False
+    """Prefer only a run's whole chain (it passed every constraint of the request); the other
+    hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
     live_pending: bool = False
     """With `live_points`, also report this planner's pending suggestions to the service and
     keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
@@ -257,7 +271,15 @@ class KnowledgeConfig:
     the others are about to try cost pack rollouts (BENCHMARKS.md, issue 23)."""
 
     def __post_init__(self) -> None:
-        _at_least(self, refresh_rollouts=0, match_chunk=1, fit_wait_s=0.0, live_every_rollouts=1)
+        _at_least(
+            self,
+            refresh_rollouts=0,
+            match_chunk=1,
+            fit_wait_s=0.0,
+            live_every_rollouts=1,
+            live_hints=0,
+            live_hints_limit=1,
+        )
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
 

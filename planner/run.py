@@ -109,6 +109,7 @@ class PlanResult:
     live_points: int = 0  # other planners' points taken in during the run (live sharing)
     live_types: int = 0  # types other planners created during the run, activated from them
     pending_shared: int = 0  # other planners' pending suggestions this run was kept away from
+    peer_hints: int = 0  # other planners' feasible points its suggestions scored as candidates
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
@@ -264,6 +265,7 @@ def _plan_with_knowledge(
             live_points=stats.live_points,
             live_types=stats.live_types,
             pending_shared=stats.pending_shared,
+            peer_hints=stats.peer_hints,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],

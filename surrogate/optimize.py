@@ -105,6 +105,26 @@ class _Genome:
                 cols[name] = low + np.clip(g, 0.0, 1.0) * (high - low)
         return cols
 
+    def genes(self, partial: Mapping[str, Value], base: np.ndarray) -> np.ndarray:
+        """`base` (one row of genes) with the variables `partial` gives set to its values
+        (those outside the free space, or not of their domain, are ignored)."""
+        genes = np.array(base, dtype=float)
+        for name, value in partial.items():
+            domain = self.space.get(name)
+            if domain is None:
+                continue
+            where = self.slices[name]
+            if isinstance(domain, CategoricalDomain):
+                if value in domain.choices:
+                    genes[where] = (domain.choices.index(value) + 0.5) / len(domain.choices)
+                continue
+            low, high = np.asarray(domain.low), np.asarray(domain.high)
+            point = np.asarray(value, dtype=float).reshape(-1)
+            if point.shape == low.shape:
+                span = np.where(high > low, high - low, 1.0)
+                genes[where] = np.clip((point - low) / span, 0.0, 1.0)
+        return genes
+
 
 class _MixedSBX(SBX):
     def __init__(self, categorical: np.ndarray, **kwargs: object) -> None:
@@ -242,11 +262,18 @@ def maximize_batch(
     config: OptimizerConfig | None = None,
     n: int = 1,
     distinct: Sequence[str] | None = None,
+    hints: Sequence[Mapping[str, Value]] = (),
+    preferred: int = 0,
 ) -> list[Suggestion]:
     """Up to `n` points, the first as `maximize` answers; each next one is chosen from the same
     candidates as if the ones before were excluded (on the variables `distinct`, default all free
     ones), so a batch is spread like successive suggestions at one node, for one optimisation.
-    Fewer than `n` only when a finite space runs out."""
+    Fewer than `n` only when a finite space runs out. `hints`: points (of some free variables)
+    where constraints are known to have held, such as bindings other planners passed: scored
+    too (a narrow feasible region around one known point is easily missed by the raw samples).
+    The batch's first point is the best of the first `preferred` hints (those known to satisfy
+    every constraint weighed) when it is as good as the best candidate by the margin rule,
+    rather than the most spread of those."""
     config = config or OptimizerConfig()
     fixed = fixed or {}
     free, fixed_in_space = _split(space, fixed)
@@ -258,12 +285,15 @@ def maximize_batch(
     avoid = AvoidSet(free, fixed_in_space, exclude, acquisition.pending.points, walls=config.walls)
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
-    genes = _candidates(genome, free, scorer, config, seed)
+    genes, n_hinted = _candidates(genome, free, scorer, config, seed, hints)
+    rows = np.arange(len(genes)) - (len(genes) - n_hinted)  # `_candidates` ends with the hints
+    hinted = (rows >= 0) & (rows < preferred)
     ok = ~avoid.excluded(genome.columns(genes))
     if not ok.any():
         if _finite_size(free) is not None:
             raise SpaceExhausted("every point of the space is excluded")
         genes = np.random.default_rng(seed).random((config.pop_size, genome.n_genes))
+        hinted = np.zeros(len(genes), dtype=bool)
     cols = genome.columns(genes)
     raw = scorer.raw(genes)
     keys = [name for name in free if distinct is None or name in distinct] or list(free)
@@ -275,7 +305,8 @@ def maximize_batch(
         if not ok.any():
             break
         score, spread = scorer.explore_terms(raw, cols, avoid)
-        best = _select(ok, score, raw, spread, config.margin, config.margin_abs)
+        prefer = hinted if not found else None
+        best = _select(ok, score, raw, spread, config.margin, config.margin_abs, prefer)
         x = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
         found.append(Suggestion({k: x[k] for k in space}, float(raw[best])))
     return found
@@ -288,17 +319,21 @@ def _select(
     spread: np.ndarray,
     margin: float,
     margin_abs: float = 0.0,
+    prefer: np.ndarray | None = None,
 ) -> int:
     """The index of the answer among the allowed (`ok`) candidates: the best score, or with a
     margin the most spread of those within `max(margin * |best|, margin_abs)` of the best
     acquisition (ties: the best score). The absolute part matters where the model rates
     everything as almost surely infeasible: the argmax of such a surface is only its tail
     nearest some feasible point (often one of another grasp or task), and the children piled
-    there fail together; among near-equal values, spreading is the better bet."""
+    there fail together; among near-equal values, spreading is the better bet. A `prefer`red
+    candidate among the near ones wins, the best scored: it is known to be feasible."""
     if margin <= 0 and margin_abs <= 0:
         return int(np.argmax(np.where(ok, score, -np.inf)))
     best = raw[ok].max()
     near = ok & (raw >= best - max(margin * abs(best), margin_abs))
+    if prefer is not None and (near & prefer).any():
+        return int(np.argmax(np.where(near & prefer, score, -np.inf)))
     order = np.lexsort((-score, -np.round(spread, 9), ~near))
     return int(order[0])
 
@@ -315,16 +350,24 @@ def _candidates(
     scorer: _Scorer,
     config: OptimizerConfig,
     seed: int,
-) -> np.ndarray:
-    """All points of a small finite space, else NSGA-II's final population plus its start."""
+    hints: Sequence[Mapping[str, Value]] = (),
+) -> tuple[np.ndarray, int]:
+    """All points of a small finite space, else NSGA-II's final population plus its start and
+    then the hints, each completed from the best raw sample (they may start NSGA-II too, so
+    that it can refine around them); with how many rows at the end are hints."""
     size = _finite_size(free)
     if size is not None and size <= config.enumerate_limit:
-        return _grid_genes(free, seed)
+        return _grid_genes(free, seed), 0
     raw = space_filling_genes(genome.n_genes, max(config.raw_samples, config.pop_size), seed)
+    hinted = np.zeros((0, genome.n_genes))
+    if hints:
+        best = raw[int(np.argmax(scorer(raw)))]
+        hinted = np.vstack([genome.genes(hint, best)[None, :] for hint in hints])
     if config.n_gen <= 0:
-        return raw
-    start = raw[np.argsort(-scorer(raw), kind="stable")[: config.pop_size]]
-    return np.vstack([_nsga2(genome, scorer, config, seed, start), raw])
+        return np.vstack([raw, hinted]), len(hinted)
+    pool = np.vstack([raw, hinted])
+    start = pool[np.argsort(-scorer(pool), kind="stable")[: config.pop_size]]
+    return np.vstack([_nsga2(genome, scorer, config, seed, start), raw, hinted]), len(hinted)
 
 
 def _grid_genes(free: Mapping[str, Domain], seed: int) -> np.ndarray:

@@ -118,11 +118,15 @@ def suggest(
     key: str,
     config: OptimizerConfig,
     shared: Sequence[Mapping[str, Value]] = (),
+    hints: Sequence[Mapping[str, Value]] = (),
+    preferred: int = 0,
 ) -> SuggestAnswer:
     """The MPF maximiser over `request.space` for its constraints (a space-filling point when
     there are none), away from `exclude` and from the suggestions pending in `book` under `key`;
     the answer's points are recorded there as pending. `shared`: more pending points, in this
-    request's variables, kept away from but not recorded (other planners'). Raises
+    request's variables, kept away from but not recorded (other planners'). `hints`: points in
+    this request's variables that the maximiser scores besides its own candidates, the first
+    `preferred` of them preferred (`surrogate.optimize.maximize_batch`). Raises
     InvalidRequest naming the field, SpaceExhausted when a finite space is wholly excluded, and
     whatever `source` raises for an unknown type."""
     _check_lookahead(request)
@@ -142,7 +146,9 @@ def suggest(
     seed = request.seed if request.seed is not None else secrets.randbits(31)
     try:
         if terms:
-            points = _mpf_points(terms, request, PendingPoints(tuple(pending)), seed, config)
+            points = _mpf_points(
+                terms, request, PendingPoints(tuple(pending)), seed, config, hints, preferred
+            )
         else:
             x = space_filling(
                 request.space,
@@ -211,6 +217,8 @@ def _mpf_points(
     pending: PendingPoints,
     seed: int,
     config: OptimizerConfig,
+    hints: Sequence[Mapping[str, Value]] = (),
+    preferred: int = 0,
 ) -> list[SuggestedPoint]:
     """Up to `request.n` spread MPF maximisers (see `maximize_batch`), each with every type's
     P(feasible)."""
@@ -224,6 +232,8 @@ def _mpf_points(
         config=config,
         n=request.n,
         distinct=[var for var in request.space if var not in request.lookahead],
+        hints=hints,
+        preferred=preferred,
     )
     xs = [s.x for s in found]
     per_term = mpf.per_term(SpaceEncoder(request.space).columns(xs))

@@ -12,6 +12,12 @@ suggestions it served that no point has answered yet and reads back the other pl
 its own suggestions then keep away from, as the service's `suggest` keeps concurrent requests
 apart. When it closes it withdraws what is left.
 
+The other planners' feasible points are also kept apart (`PeerHints`), a few per type, as
+candidates for this planner's MPF maximisation: a fresh point changes its model only within a
+short reach (`surrogate.models.RecentPoints`), which the maximiser's raw samples rarely land in,
+so without them a binding another planner has just found stays unseen here until a fit has
+taken it in, and with several planners on one service the fits lag.
+
 The cursor starts at the highest point id when the feed starts: what was stored before is in the
 models this planner fetches. On PostgreSQL a point whose transaction commits after one with a
 higher id was read is skipped here (it reaches this planner with the next fit).
@@ -22,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from client.models import LivePoint, PendingPoint, PointsSinceOut
+from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
 ExchangeFn = Callable[[list[PendingPoint], list[str]], list[PendingPoint]]
@@ -166,3 +172,60 @@ class PendingExchange:
             return None
         self._in_flight = None
         return done.result()
+
+
+class PeerHints:
+    """The newest `per_type` feasible points of each type that other planners stored, as
+    candidates (hints) for the MPF maximisation of a request that binds the type."""
+
+    def __init__(self, per_type: int, limit: int, whole_only: bool = False) -> None:
+        self.per_type = per_type
+        self.limit = limit
+        self.whole_only = whole_only
+        self._points: dict[str, list[tuple[int, str | None, dict[str, Value]]]] = {}
+        self.used = 0  # hints handed to suggestions
+
+    def add(self, point: LivePoint) -> None:
+        if not point.feasible or self.per_type <= 0:
+            return
+        kept = self._points.setdefault(point.type_id, [])
+        kept.append((point.point_id, point.run, dict(point.x)))
+        del kept[: -self.per_type]
+
+    def for_request(
+        self, constraints: list[Constraint], free: set[str]
+    ) -> tuple[list[dict[str, Value]], int]:
+        """The kept points in the request's free variables, through each constraint binding
+        their type, and how many of them, the first, to prefer (all, or with `whole_only` the
+        whole chains). First come, per other run, its points merged (each variable at its newest
+        value), so that the chain of decisions a run last passed (its binding, once it has one)
+        is one candidate rather than scattered parts; the whole chains (the run passed every
+        constraint of the request, and the chain gives every free variable) lead. At most
+        `limit`, the newest first."""
+        parts: list[tuple[int, str | None, dict[str, Value]]] = []
+        passed: dict[str | None, set[str]] = {}
+        for constraint in constraints:
+            bind = constraint.bind
+            for point_id, run, x in self._points.get(constraint.type_id, ()):
+                passed.setdefault(run, set()).add(constraint.type_id)
+                hint = {bind[k]: v for k, v in x.items() if bind.get(k) in free}
+                if hint:
+                    parts.append((point_id, run, hint))
+        parts.sort(key=lambda part: part[0])
+        merged: dict[str | None, dict[str, Value]] = {}
+        for _, run, hint in parts:
+            merged.setdefault(run, {}).update(hint)
+        wanted = {c.type_id for c in constraints}
+        runs = list(dict.fromkeys(run for _, run, _ in reversed(parts)))
+        whole = [merged[r] for r in runs if passed[r] >= wanted and set(merged[r]) >= free]
+        hints: list[dict[str, Value]] = []
+        for hint in whole:
+            if hint not in hints:
+                hints.append(hint)
+        preferred = len(hints)
+        for hint in [*(merged[r] for r in runs), *(h for *_, h in reversed(parts))]:
+            if hint not in hints:
+                hints.append(hint)
+        hints = hints[: self.limit]
+        self.used += len(hints)
+        return hints, min(preferred, len(hints)) if self.whole_only else len(hints)

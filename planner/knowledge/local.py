@@ -264,9 +264,18 @@ class LocalSurrogates:
             for p in others
         ]
 
-    def suggest(self, request: SuggestIn, rollout: int, stored: int) -> SuggestOut:
+    def suggest(
+        self,
+        request: SuggestIn,
+        rollout: int,
+        stored: int,
+        hints: Callable[[list[Constraint], set[str]], tuple[list[dict[str, Value]], int]]
+        | None = None,
+    ) -> SuggestOut:
         """What the service's `suggest` would answer to this planner alone. `stored`: the last
-        poster batch the service has taken in (its points are in a fetched model)."""
+        poster batch the service has taken in (its points are in a fetched model); `hints`:
+        points worth scoring, and how many of them (the first) to prefer, given the request's
+        constraints and free variables (`planner.knowledge.live.PeerHints.for_request`)."""
         type_ids = list(dict.fromkeys(c.type_id for c in request.constraints))
         self._land()
         missing = [t for t in type_ids if t not in self._models]
@@ -276,6 +285,8 @@ class LocalSurrogates:
         if stale:
             self._refresh(stale, rollout, stored)
         shared = in_request_terms(self._shared, request.constraints) if self._shared else []
+        free = set(request.space) - set(request.fixed)
+        hinted, preferred = hints(request.constraints, free) if hints is not None else ([], 0)
         answer = suggest_point(
             self,
             SuggestRequest.from_json(request.model_dump()),
@@ -283,6 +294,8 @@ class LocalSurrogates:
             key=PENDING_KEY,
             config=self._config,
             shared=shared,
+            hints=hinted,
+            preferred=preferred,
         )
         self.shared_used += len(shared)
         out = answer.to_json()

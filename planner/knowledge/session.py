@@ -39,7 +39,7 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
-from planner.knowledge.live import LiveFeed, PendingExchange
+from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -96,6 +96,7 @@ class KnowledgeStats:
     live_points: int = 0  # other planners' points taken in during the run
     live_types: int = 0  # types other planners created during the run, activated from them
     pending_shared: int = 0  # other planners' pending suggestions local ones were kept from
+    peer_hints: int = 0  # other planners' feasible points scored as candidates (`PeerHints`)
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -205,6 +206,15 @@ class KnowledgeSession:
             if self.live is not None
             and self.config.live_pending
             and hasattr(client, "exchange_pending")
+            else None
+        )
+        self.hints = (
+            PeerHints(
+                self.config.live_hints,
+                self.config.live_hints_limit,
+                whole_only=self.config.live_hints_whole_only,
+            )
+            if self.live is not None and self.config.live_hints > 0
             else None
         )
         self._unmatched: dict[Key, FailureGraph] = {}
@@ -360,6 +370,8 @@ class KnowledgeSession:
             return
         born: dict[str, int] = {}
         for point in points:
+            if self.hints is not None:
+                self.hints.add(point)
             if point.type_id in self._types:
                 self.local.learn(point.type_id, point.point_id, point.x, point.feasible)
             else:
@@ -497,7 +509,8 @@ class KnowledgeSession:
             return None
         fetches = local.fetches
         try:
-            answer = local.suggest(request, self._rollout, self.poster.done)
+            hints = self.hints.for_request if self.hints is not None else None
+            answer = local.suggest(request, self._rollout, self.poster.done, hints)
         except Exception as exc:
             # The service answers this one call (it says what was wrong with a request); the
             # next one is tried here again, so a passing network error changes nothing for good.
@@ -525,6 +538,8 @@ class KnowledgeSession:
         if self.local is not None:
             self.local.close()
             self.stats.pending_shared = self.local.shared_used
+        if self.hints is not None:
+            self.stats.peer_hints = self.hints.used
         self.stats.kb_parts["close"] = time.perf_counter() - started
 
     @property

@@ -8,7 +8,7 @@ import pytest
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints, Scored, ucb
 from surrogate.domains import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import fit_classifier, fit_regression
+from surrogate.models import PriorPredictor, fit_classifier, fit_regression
 from surrogate.optimize import (
     OptimizerConfig,
     SpaceExhausted,
@@ -209,3 +209,68 @@ def test_a_batch_answers_as_if_each_point_were_excluded_in_turn(mpf: MPF) -> Non
     assert batch[0].x == one_by_one[0].x
     assert all(b.x not in children for b in batch)
     assert len({str(b.x) for b in batch}) == 3
+
+
+HINT_SPACE = {
+    "dir": CategoricalDomain(choices=DIRS),
+    "pose": ContinuousDomain(low=[0.0, 0.0, 0.0, 0.0], high=[2.0, 1.0, 1.0, 1.0]),
+}
+KNOWN = {"dir": "back", "pose": [1.3, 0.21, 0.77, 0.42]}  # where the constraint held once
+
+
+def known_once() -> MPF:
+    """A type with one feasible point, of the narrow reach a point not yet fitted has: a flat
+    coin flip everywhere but next to it."""
+    encoder = SpaceEncoder(HINT_SPACE)
+    bump = PriorPredictor(encoder.encode_points([KNOWN]), np.zeros((0, encoder.dim)), 0.45, 0.02)
+    bind = {k: k for k in HINT_SPACE}
+    return MPF([ConstraintTerm.build("t", bump, HINT_SPACE, bind, {})])
+
+
+def test_a_hinted_point_that_the_raw_samples_miss_is_found_and_answered_first() -> None:
+    mpf = known_once()
+    alone = maximize_batch(mpf, HINT_SPACE, seed=1, n=3)
+    assert alone[0].value < 0.6  # the narrow bump is missed without the hint
+    hinted = maximize_batch(mpf, HINT_SPACE, seed=1, n=3, hints=[{"pose": KNOWN["pose"]}, KNOWN])
+    assert hinted[0].x["dir"] == KNOWN["dir"]
+    assert hinted[0].x["pose"] == pytest.approx(KNOWN["pose"])
+    assert hinted[0].value > 0.9
+    assert all(s.x != hinted[0].x for s in hinted[1:])  # the rest of the batch spreads
+
+
+def test_a_hint_is_never_an_excluded_point_nor_preferred_when_clearly_worse() -> None:
+    mpf = known_once()
+    excluded = maximize_batch(mpf, HINT_SPACE, exclude=[KNOWN], seed=1, hints=[KNOWN])
+    assert excluded[0].x != KNOWN
+    elsewhere = {"dir": "top", "pose": [0.1, 0.9, 0.1, 0.9]}
+    worse = MPF(
+        [
+            ConstraintTerm.build(
+                "t",
+                PriorPredictor(
+                    np.zeros((0, SpaceEncoder(HINT_SPACE).dim)),
+                    SpaceEncoder(HINT_SPACE).encode_points([elsewhere]),
+                ),
+                HINT_SPACE,
+                {k: k for k in HINT_SPACE},
+                {},
+            )
+        ]
+    )
+    found = maximize_batch(worse, HINT_SPACE, seed=1, hints=[elsewhere])
+    assert found[0].x != elsewhere and found[0].value > 0.4
+
+
+def test_among_near_equal_candidates_a_preferred_hint_wins_over_the_most_spread() -> None:
+    encoder = SpaceEncoder(HINT_SPACE)
+    none = np.zeros((0, encoder.dim))
+    bind = {k: k for k in HINT_SPACE}
+    flat = MPF([ConstraintTerm.build("t", PriorPredictor(none, none), HINT_SPACE, bind, {})])
+    child = {"dir": "back", "pose": [1.0, 0.5, 0.5, 0.5]}  # a sibling the answer keeps away from
+    near_it = {"dir": "back", "pose": [1.1, 0.5, 0.5, 0.5]}
+    spread = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2)
+    assert spread[0].x != near_it
+    scored = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it])
+    assert scored[0].x == spread[0].x  # a hint only scored: the most spread still wins
+    hinted = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it], preferred=1)
+    assert hinted[0].x["pose"] == pytest.approx(near_it["pose"])
