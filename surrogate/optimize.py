@@ -120,9 +120,8 @@ class _Genome:
                 continue
             low, high = np.asarray(domain.low), np.asarray(domain.high)
             point = np.asarray(value, dtype=float).reshape(-1)
-            if point.shape == low.shape:
-                span = np.where(high > low, high - low, 1.0)
-                genes[where] = np.clip((point - low) / span, 0.0, 1.0)
+            if point.shape == low.shape:  # a domain's bounds are strictly ordered
+                genes[where] = np.clip((point - low) / (high - low), 0.0, 1.0)
         return genes
 
 

@@ -314,10 +314,11 @@ class KnowledgeSession:
         self, index: int, bindings: dict[str, Value], outcome: TransitionOutcome, rollout: int
     ) -> None:
         self._rollout = rollout
+        values = {**bindings, **self._constants} if self._constants else bindings
         for position, check in enumerate(outcome.checks):
             if check.ok:
                 for key, activation in self._by_check.get((index, position), ()):
-                    x = activation.failure.x({**bindings, **self._constants})
+                    x = activation.failure.x(values)
                     self._pending.append((key, activation.failure, x, True))
                 continue
             culprit = check.culprits[0].body if check.culprits else None
@@ -325,7 +326,7 @@ class KnowledgeSession:
             fg = self._graph(key, index, check, culprit)
             if not fg.bind:
                 continue
-            self._pending.append((key, fg, fg.x({**bindings, **self._constants}), False))
+            self._pending.append((key, fg, fg.x(values), False))
             if key not in self._active:
                 self._unmatched[key] = fg
 
