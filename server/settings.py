@@ -62,6 +62,10 @@ class Settings(BaseSettings):
     surrogate_instant_fit_iters: int = Field(
         default=SurrogateConfig.instant_fit_iters, ge=1, le=1000
     )
+    # ... and a type whose fit lags this many times behind its points (0: first models only).
+    surrogate_instant_refit_factor: float = Field(
+        default=SurrogateConfig.instant_refit_factor, ge=0.0, le=100.0
+    )
     # A type in use loads its new points when they are older than this (one indexed query).
     surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)
     surrogate_pending_ttl_s: float = Field(default=SurrogateConfig.pending_ttl_s, ge=0)

@@ -10,11 +10,14 @@ is waiting on first, then the types without a fit, then the rest.
 
 A new type does not wait for that queue: while it has no background fit and at most
 `instant_fit_points` points, a second thread of the service's own process gives it a short fit
-at once (`instant_fit_iters` steps, a fraction of a second at that size). The background fit
-does not warm-start from it: whether an instant fit landed before the background fit began is a
-matter of timing, and a fit must be a function of the points alone for `--deterministic` runs
-to repeat. A request always answers with the latest finished fit (or the stated prior of
-`surrogate.models.PriorPredictor` until there is one).
+at once (`instant_fit_iters` steps, a fraction of a second at that size). With
+`instant_refit_factor`, so does a type whose fit holds fewer than 1/factor of its points, warm
+from that fit: with many planners at once the queue lags, and a model of half the points
+misleads them all meanwhile. A background fit never warm-starts from an instant one (it starts
+from the previous background fit): whether an instant fit landed before the background fit
+began is a matter of timing, and a fit must be a function of the points alone for
+`--deterministic` runs to repeat. A request always answers with the latest finished fit (or
+the stated prior of `surrogate.models.PriorPredictor` until there is one).
 
 Replicas of the service on one database share their fits (`server.surrogates.shared`): before
 fitting, the coordinator loads a stored fit that covers the type's points, and fits only under
@@ -67,6 +70,7 @@ class EngineConfig:
     max_fit_points: int = SurrogateConfig.max_fit_points
     instant_fit_points: int = SurrogateConfig.instant_fit_points
     instant_fit_iters: int = SurrogateConfig.instant_fit_iters
+    instant_refit_factor: float = SurrogateConfig.instant_refit_factor
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
@@ -104,6 +108,7 @@ class _Entry:
     merging: threading.Lock = field(default_factory=threading.Lock, repr=False)
     seen: Seen = ()  # the fit's categorical choices (UnseenChoices)
     instant: bool = False  # the fit is the instant lane's: the background fit is still to come
+    background: Fit | None = None  # the latest background (or stored) fit: the next one's start
 
     @property
     def n_points(self) -> int:
@@ -231,7 +236,10 @@ class SurrogateEngine:
                 if self._first_thread is not None and (
                     entry is None
                     or entry.fit is None
-                    or (entry.instant and entry.n_points <= self.config.instant_fit_points)
+                    or (
+                        (entry.instant or self.config.instant_refit_factor > 0)
+                        and entry.n_points <= self.config.instant_fit_points
+                    )
                 ):
                     self._first[key] = None
                     self._cond.notify_all()
@@ -449,7 +457,7 @@ class SurrogateEngine:
                 return
             with self._cond:  # the instant lane may install a fit meanwhile
                 z, y, n = entry.z, entry.y, entry.n_points
-                warm = None if entry.instant else entry.fit  # see the module's docstring
+                warm = entry.background  # see the module's docstring
             fit = self._fit(z, y, warm)
             if self.shared is not None:
                 self.shared.save(entry.origin[0], fit, entry.origin[1])
@@ -470,7 +478,7 @@ class SurrogateEngine:
         with self._cond:
             entry.fit, entry.predictor, entry.seen = fit, fit.predictor, seen
             entry.n_fitted, entry.status, entry.error = n, "ready", None
-            entry.fitted_at, entry.instant = datetime.now(UTC), False
+            entry.fitted_at, entry.instant, entry.background = datetime.now(UTC), False, fit
 
     def _claim(self, entry: _Entry) -> AbstractContextManager[bool]:
         return self.shared.claim(entry.origin[0]) if self.shared is not None else nullcontext(True)
@@ -550,8 +558,9 @@ class SurrogateEngine:
                     self._cond.notify_all()
 
     def _first_model(self, key: Key) -> None:
-        """A short fit, here and now, of a type that has no background fit yet and few enough
-        points; a background fit that lands first wins, and replaces this one when it lands."""
+        """A short fit, here and now, of a type with few enough points that has no background
+        fit yet (or one that lags `instant_refit_factor` times behind its points); a background
+        fit of as many points that lands first wins, and one replaces this one when it lands."""
         with self._cond:
             entry = self._entries.get(key)
         if entry is None:
@@ -562,11 +571,12 @@ class SurrogateEngine:
                 entry = self._merge(key, entry, new)
         with self._cond:
             z, y, n, fit, instant = entry.z, entry.y, entry.n_points, entry.fit, entry.instant
-        if n > self.config.instant_fit_points or not needs_model(y) or entry.n_fitted >= n:
-            return
-        if fit is not None and not instant:
-            return
         config = self.config
+        if n > config.instant_fit_points or not needs_model(y) or entry.n_fitted >= n:
+            return
+        refit = config.instant_refit_factor > 0 and n > config.instant_refit_factor * entry.n_fitted
+        if fit is not None and not instant and not refit:
+            return
         first = fit_classifier(
             z[:n],
             y[:n],
@@ -578,7 +588,7 @@ class SurrogateEngine:
         )
         seen = seen_choices(entry.encoder, z[:n])
         with self._cond:
-            current = entry.fit is None or entry.instant
+            current = entry.fit is None or entry.instant or refit
             if current and n > entry.n_fitted and self._entries.get(key) is entry:
                 entry.fit, entry.predictor, entry.seen = first, first.predictor, seen
                 entry.n_fitted, entry.status, entry.error = n, "ready", None

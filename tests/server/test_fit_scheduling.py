@@ -115,3 +115,36 @@ def test_a_new_type_has_a_model_at_once_while_a_long_fit_runs(sqlite_url: str) -
             assert p[0] < 0.3 and p[1] > 0.7
         assert engine.wait_idle(timeout=300)
         assert not engine._entries[("default", type_id)].instant  # the background fit landed
+
+
+@pytest.mark.slow
+def test_a_fit_that_lags_far_behind_its_points_gets_an_instant_refit(sqlite_url: str) -> None:
+    with make_client(sqlite_url, surrogate_instant_refit_factor=2.0) as client:
+        engine = client.app.state.surrogates
+        graph = make_graph("Lagging", ("e",))
+        type_id = _post(client, graph, _labelled(10))
+        assert engine.wait_idle(timeout=300)
+        entry = engine._entries[("default", type_id)]
+        first = entry.background
+        assert first is not None and entry.n_fitted == 10 and not entry.instant
+        warms: list = []
+        fit = engine._fit
+
+        def recording(z: Any, y: Any, warm: Any) -> Any:
+            warms.append(warm)
+            return fit(z, y, warm)
+
+        engine._fit = recording
+        lane_idle = lambda: not engine._first and engine._first_busy is None  # noqa: E731
+        with held_coordinator(engine) as (held, _):
+            post_points(client, 4)  # other types, whose fit holds the coordinator
+            assert held.wait(timeout=120)
+            _post(client, graph, _labelled(8, start=10))  # 18 points: not yet twice 10
+            wait_until(lane_idle, what="the instant lane to look at the type")
+            assert entry.n_fitted == 10 and not entry.instant
+            _post(client, graph, _labelled(12, start=18))  # 30 points: three times 10
+            wait_until(lambda: entry.n_fitted == 30, what="the instant refit")
+            assert entry.instant and entry.fit.iterations <= 30 and entry.background is first
+        assert engine.wait_idle(timeout=300)
+        assert entry.n_fitted == 30 and not entry.instant and entry.background is entry.fit
+        assert any(warm is first for warm in warms)  # the background fit went on from its own
