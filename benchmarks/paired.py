@@ -4,10 +4,14 @@ Guided runs are not repeatable per seed and their spread is wide, so arms are co
 run on the same (target, seed) pairs: the ratio of the mean rollouts (B / A, below 1: B took
 fewer) with a paired bootstrap 95 % interval, and both medians. An arm may be several methods
 joined by `+` (e.g. the default run twice as `cp-bo+cp-bo-walls`): their runs of one pair are
-averaged, so the twin arms of a default count as one better-measured arm.
+averaged, so the twin arms of a default count as one better-measured arm. A method written
+`DIR:method` is taken from another bench's directory (planners at once against the same seeds
+alone, an arm rerun elsewhere).
 
     .venv/bin/python benchmarks/paired.py benchmarks/results/dev-walls \
         cp-bo+cp-bo-walls cp-bo-no-walls
+    .venv/bin/python benchmarks/paired.py benchmarks/results/concurrent23b \
+        alone/:cp-bo+alone-r2/:cp-bo n8-final/:cp-bo
 """
 
 from __future__ import annotations
@@ -43,6 +47,13 @@ def pairs(records: list[dict], a: list[str], b: list[str]) -> dict[str, list[tup
     return out
 
 
+def _elsewhere(results: Path, arm: str) -> list[dict]:
+    """The runs of `DIR:method` (DIR relative to `results`), their method renamed to `arm`."""
+    directory, method = arm.rsplit(":", 1)
+    found = [r for r in ResultStore(results / directory).records() if r["method"] == method]
+    return [{**record, "method": arm} for record in found]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path, help="a bench's --out directory")
@@ -50,6 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("b", help="arm B, likewise")
     args = parser.parse_args(argv)
     records = ResultStore(args.results).records()
+    for arm in {*args.a.split("+"), *args.b.split("+")}:
+        if ":" in arm:
+            records += _elsewhere(args.results, arm)
     if not records:
         print(f"no runs in {args.results}", file=sys.stderr)
         return 2

@@ -66,6 +66,8 @@ class Settings(BaseSettings):
     surrogate_instant_refit_factor: float = Field(
         default=SurrogateConfig.instant_refit_factor, ge=0.0, le=100.0
     )
+    # Kernel terms of one decision's inputs beside the main kernel: see surrogate.additive.
+    surrogate_additive: Literal["none", "choices", "decisions"] = SurrogateConfig.additive  # type: ignore[assignment]
     # A type in use loads its new points when they are older than this (one indexed query).
     surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)
     surrogate_pending_ttl_s: float = Field(default=SurrogateConfig.pending_ttl_s, ge=0)

@@ -28,6 +28,9 @@ class SurrogateConfig:
     `instant_fit_points`) gets such a short fit too, warm from its fit, while its background
     refit waits in the queue: with many planners at once that queue lags behind the points
     (0: first models only)."""
+    additive: str = "none"
+    """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
+    or `decisions`: `surrogate.additive`)."""
     prior_weight: float = 0.45
     """How far the stated prior moves P(feasible) away from 0.5 at an observed point."""
     prior_lengthscale: float = 0.1

@@ -32,6 +32,7 @@ from scipy.special import ndtr
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
 
+from surrogate.additive import AdditiveTerm, Groups, additive_cov, terms_variance
 from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
 
@@ -186,7 +187,8 @@ class UnseenChoices:
 @dataclass(frozen=True)
 class VGPPredictor:
     """Cached predictive terms of a whitened variational GP: mean = c + K_xz a,
-    var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var))."""
+    var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var)). The kernel
+    is the ARD Matern over all inputs plus the `terms` (`surrogate.additive`), if any."""
 
     inducing: np.ndarray  # (m, D)
     lengthscale: np.ndarray  # (D,)
@@ -194,11 +196,18 @@ class VGPPredictor:
     constant: float
     a: np.ndarray  # (m,) = L^-T m_v
     b: np.ndarray  # (m, m) = L^-T (S - I) L^-1
+    terms: tuple[AdditiveTerm, ...] = ()
+
+    @property
+    def prior_variance(self) -> float:
+        return self.outputscale + terms_variance(self.terms)
 
     def latent(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         kxz = matern52(z, self.inducing, self.lengthscale, self.outputscale)
+        if self.terms:
+            kxz = kxz + additive_cov(z, self.inducing, self.terms)
         mean = self.constant + kxz @ self.a
-        var = self.outputscale + JITTER + ((kxz @ self.b) * kxz).sum(1)
+        var = self.prior_variance + JITTER + ((kxz @ self.b) * kxz).sum(1)
         return mean, np.maximum(var, 1e-12)
 
     def proba(self, z: np.ndarray) -> np.ndarray:
@@ -209,7 +218,7 @@ class VGPPredictor:
         """The latent posterior sd over the prior's (outputscale): 1 away from the inducing
         points, lower where the variational posterior has learnt from data."""
         _, var = self.latent(z)
-        return np.sqrt(np.clip(var / (self.outputscale + JITTER), 0.0, 1.0))
+        return np.sqrt(np.clip(var / (self.prior_variance + JITTER), 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -270,16 +279,23 @@ class Fit:
 
 
 class _SVGP(gpytorch.models.ApproximateGP):
-    def __init__(self, inducing: torch.Tensor) -> None:
+    def __init__(self, inducing: torch.Tensor, groups: Groups = ()) -> None:
         dist = gpytorch.variational.CholeskyVariationalDistribution(inducing.shape[0])
         strategy = gpytorch.variational.VariationalStrategy(
             self, inducing, dist, learn_inducing_locations=True, jitter_val=JITTER
         )
         super().__init__(strategy)
         self.mean_module = gpytorch.means.ConstantMean()
-        self.covar_module = gpytorch.kernels.ScaleKernel(
+        main = gpytorch.kernels.ScaleKernel(
             gpytorch.kernels.MaternKernel(nu=2.5, ard_num_dims=inducing.shape[1])
         )
+        terms = [
+            gpytorch.kernels.ScaleKernel(
+                gpytorch.kernels.MaternKernel(nu=2.5, ard_num_dims=len(g), active_dims=g)
+            )
+            for g in groups
+        ]
+        self.covar_module = gpytorch.kernels.AdditiveKernel(main, *terms) if terms else main
 
     def forward(self, x: torch.Tensor) -> gpytorch.distributions.MultivariateNormal:
         return gpytorch.distributions.MultivariateNormal(self.mean_module(x), self.covar_module(x))
@@ -400,8 +416,10 @@ def fit_classifier(
     max_points: int = SurrogateConfig.max_fit_points,
     max_iters: int = 100,
     lr: float = 0.1,
+    groups: Groups = (),
 ) -> Fit:
-    """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible).
+    """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible), with an additive
+    kernel term over each column group of `groups` (`surrogate.additive.term_groups`).
 
     At most `max_points` of them are trained on (`_training_subset`; 0: all), so that a fit of
     a large type costs what one of `max_points` does.
@@ -424,6 +442,8 @@ def fit_classifier(
         return Fit("prior", prior, len(y), time.perf_counter() - t0)
     torch.manual_seed(seed)
     state = warm.warm_state if warm is not None and warm.kind == "vgp" else None
+    if state is not None and [list(g) for g in groups] != state.get("groups", []):
+        state = None  # another kernel: nothing to start from
     last = warm.predictor if warm is not None and state is not None else None
     subset = _training_subset(z, y, max_points, seed, last)
     zb, yb = _balance(z[subset], y[subset], seed)
@@ -432,7 +452,7 @@ def fit_classifier(
         inducing = torch.as_tensor(state["model"]["variational_strategy.inducing_points"])
     else:
         inducing = torch.as_tensor(_kmeans_centres(zb, m, seed))
-    model = _SVGP(inducing.double()).double()
+    model = _SVGP(inducing.double(), groups).double()
     likelihood = gpytorch.likelihoods.BernoulliLikelihood().double()
     reused = state is not None and state["m"] == m
     if state is not None:
@@ -456,9 +476,10 @@ def fit_classifier(
         max_iters // 3 if reused else max_iters,  # a new inducing set starts its posterior anew
         min(lr, WARM_LR) if reused else lr,
     )
-    predictor = _vgp_predictor(model)
+    predictor = _vgp_predictor(model, groups)
     accuracy = float(((predictor.proba(z[subset]) > 0.5) == y[subset]).mean())  # trained on
-    warm_state = {"m": m, "model": {k: v.detach().clone() for k, v in model.state_dict().items()}}
+    weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
+    warm_state = {"m": m, "model": weights, "groups": [list(g) for g in groups]}
     return Fit(
         "vgp",
         predictor,
@@ -473,23 +494,34 @@ def fit_classifier(
     )
 
 
-def _vgp_predictor(model: _SVGP) -> VGPPredictor:
+def _scaled(kernel: Any) -> tuple[np.ndarray, float]:
+    """A ScaleKernel(Matern)'s lengthscales `(d,)` and outputscale."""
+    lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).copy()
+    return lengthscale, float(kernel.outputscale)
+
+
+def _vgp_predictor(model: _SVGP, groups: Groups = ()) -> VGPPredictor:
     with torch.no_grad():
         strategy = model.variational_strategy
         inducing = strategy.inducing_points.detach().numpy().copy()
-        kernel = model.covar_module
-        lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).copy()
-        outputscale = float(kernel.outputscale)
+        kernels = list(model.covar_module.kernels) if groups else [model.covar_module]
+        lengthscale, outputscale = _scaled(kernels[0])
+        terms = tuple(
+            AdditiveTerm(np.asarray(g, dtype=float), *_scaled(k))
+            for g, k in zip(groups, kernels[1:], strict=True)
+        )
         dist = strategy._variational_distribution
         m_v = dist.variational_mean.detach().numpy()
         chol_s = dist.chol_variational_covar.detach().numpy()
     constant = float(model.mean_module.constant.detach())
     kzz = matern52(inducing, inducing, lengthscale, outputscale) + JITTER * np.eye(len(inducing))
+    if terms:
+        kzz += additive_cov(inducing, inducing, terms)
     l_inv = np.linalg.inv(np.linalg.cholesky(kzz))
     s = np.tril(chol_s) @ np.tril(chol_s).T
     a = l_inv.T @ m_v
     b = l_inv.T @ (s - np.eye(len(inducing))) @ l_inv
-    return VGPPredictor(inducing, lengthscale, outputscale, constant, a, b)
+    return VGPPredictor(inducing, lengthscale, outputscale, constant, a, b, terms)
 
 
 class _ExactGP(gpytorch.models.ExactGP):

@@ -46,6 +46,7 @@ from server.services.types import TrainingPoints, load_training_points
 from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
+from surrogate.additive import Groups, term_groups
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
@@ -71,6 +72,7 @@ class EngineConfig:
     instant_fit_points: int = SurrogateConfig.instant_fit_points
     instant_fit_iters: int = SurrogateConfig.instant_fit_iters
     instant_refit_factor: float = SurrogateConfig.instant_refit_factor
+    additive: str = SurrogateConfig.additive
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
@@ -458,7 +460,7 @@ class SurrogateEngine:
             with self._cond:  # the instant lane may install a fit meanwhile
                 z, y, n = entry.z, entry.y, entry.n_points
                 warm = entry.background  # see the module's docstring
-            fit = self._fit(z, y, warm)
+            fit = self._fit(z, y, warm, term_groups(entry.encoder, self.config.additive))
             if self.shared is not None:
                 self.shared.save(entry.origin[0], fit, entry.origin[1])
         self.fits += 1
@@ -519,8 +521,8 @@ class SurrogateEngine:
         timer.daemon = True
         timer.start()
 
-    def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
-        args = (z, y, 0, warm, self.config.max_inducing, self.config.max_fit_points)
+    def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None, groups: Groups = ()) -> Fit:
+        args = (z, y, 0, warm, self.config.max_inducing, self.config.max_fit_points, groups)
         fitter = self._fitter_for_next_fit()
         try:
             return fitter.fit(*args)
@@ -585,6 +587,7 @@ class SurrogateEngine:
             max_inducing=config.max_inducing,
             max_points=config.max_fit_points,
             max_iters=config.instant_fit_iters,
+            groups=term_groups(entry.encoder, config.additive),
         )
         seen = seen_choices(entry.encoder, z[:n])
         with self._cond:

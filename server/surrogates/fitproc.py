@@ -7,6 +7,7 @@ import numpy as np
 import torch
 
 from server.lifeline import exit_with_parent
+from surrogate.additive import Groups
 from surrogate.config import SurrogateConfig
 from surrogate.models import Fit, fit_classifier, warm_up
 
@@ -29,7 +30,14 @@ def fit_job(
     warm: Fit | None,
     max_inducing: int,
     max_points: int = SurrogateConfig.max_fit_points,
+    groups: Groups = (),
 ) -> Fit:
     return fit_classifier(
-        z, y, seed=seed, warm=warm, max_inducing=max_inducing, max_points=max_points
+        z,
+        y,
+        seed=seed,
+        warm=warm,
+        max_inducing=max_inducing,
+        max_points=max_points,
+        groups=groups,
     )
