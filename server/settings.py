@@ -14,7 +14,7 @@ from typing import Literal
 from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from surrogate.config import SurrogateConfig
+from surrogate.config import AdditiveMode, SurrogateConfig
 
 DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
 DEFAULT_PORT = 8000
@@ -67,7 +67,7 @@ class Settings(BaseSettings):
         default=SurrogateConfig.instant_refit_factor, ge=0.0, le=100.0
     )
     # Kernel terms of one decision's inputs beside the main kernel: see surrogate.additive.
-    surrogate_additive: Literal["none", "choices", "decisions"] = SurrogateConfig.additive  # type: ignore[assignment]
+    surrogate_additive: AdditiveMode = SurrogateConfig.additive
     # A type in use loads its new points when they are older than this (one indexed query).
     surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)
     surrogate_pending_ttl_s: float = Field(default=SurrogateConfig.pending_ttl_s, ge=0)
@@ -87,3 +87,14 @@ class Settings(BaseSettings):
     surrogate_pending_store: Literal["auto", "memory", "database"] = "auto"
     surrogate_claim_retry_s: float = Field(default=1.0, gt=0, le=60)
     replica_name: str | None = Field(default=None, min_length=1, max_length=128)
+
+
+def surrogate_overrides() -> dict[str, object]:
+    """The surrogate settings this environment sets away from their defaults: a bench records
+    them with its results, since its embedded service runs with them."""
+    here, default = Settings(), Settings.model_construct()
+    return {
+        name: getattr(here, name)
+        for name in Settings.model_fields
+        if name.startswith("surrogate_") and getattr(here, name) != getattr(default, name)
+    }

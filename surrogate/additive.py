@@ -17,14 +17,16 @@ decision gets none: its term would repeat the main kernel.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import get_args
 
 import numpy as np
 
+from surrogate.config import AdditiveMode
 from surrogate.domains import CategoricalDomain
 from surrogate.encoding import SpaceEncoder
 from surrogate.kernels import matern52
 
-ADDITIVE_MODES = ("none", "choices", "decisions")
+ADDITIVE_MODES: tuple[str, ...] = get_args(AdditiveMode)
 Groups = tuple[tuple[int, ...], ...]
 
 
@@ -37,7 +39,7 @@ class AdditiveTerm:
     outputscale: float
 
 
-def term_groups(encoder: SpaceEncoder, mode: str) -> Groups:
+def term_groups(encoder: SpaceEncoder, mode: AdditiveMode | str) -> Groups:
     """The column groups that get a term of their own under `mode`."""
     if mode not in ADDITIVE_MODES:
         raise ValueError(f"additive terms: {mode!r} is not one of {', '.join(ADDITIVE_MODES)}")

@@ -9,6 +9,9 @@ the settings does not load torch.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
+
+AdditiveMode = Literal["none", "choices", "decisions"]
 
 
 @dataclass(frozen=True)
@@ -28,7 +31,7 @@ class SurrogateConfig:
     `instant_fit_points`) gets such a short fit too, warm from its fit, while its background
     refit waits in the queue: with many planners at once that queue lags behind the points
     (0: first models only)."""
-    additive: str = "none"
+    additive: AdditiveMode = "none"
     """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
     or `decisions`: `surrogate.additive`)."""
     prior_weight: float = 0.45

@@ -32,6 +32,7 @@ from cpkb.bench.together import HEADERS as TOGETHER_HEADERS
 from cpkb.bench.together import GroupCheck, summarize_together, write_together
 from cpkb.bench.together import table_rows as together_rows
 from cpkb.bench.variants import Variant
+from server.settings import surrogate_overrides
 
 
 @dataclass(frozen=True)
@@ -241,6 +242,7 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
         else knowledge_service(settings.kb_url, settings.token)
     )
     pool = None
+    embedded = settings.kb_url is None and settings.ray_address is None
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import RayPool, WorkerKbs
 
@@ -263,6 +265,7 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             concurrent=settings.concurrent,
             mixed=settings.mixed,
             pool=pool,
+            service=surrogate_overrides() if embedded else {},
         )
 
 

@@ -3,7 +3,8 @@
 `runs.jsonl` gets one line per finished run, flushed and fsynced as it lands, so a bench
 killed at any moment keeps every run it finished and a rerun skips them. Runs that raised
 go to `errors.jsonl` and are retried by a rerun. `bench.json` pins the settings that make
-results comparable (the rollout caps, the planner knobs set); a rerun with others is refused.
+results comparable (the rollout caps, the planner knobs set, the embedded service's settings
+away from their defaults); a rerun with others is refused.
 A `runs.jsonl.xz` or `.gz` beside it (how finished runs are kept in the repository) is read as
 finished runs too.
 """
@@ -25,7 +26,12 @@ COMPRESSED_RUNS_FILES = ("runs.jsonl.xz", "runs.jsonl.gz")
 ERRORS_FILE = "errors.jsonl"
 GROUPS_FILE = "groups.jsonl"
 CONFIG_FILE = "bench.json"
-PINNED_DEFAULTS: Mapping[str, Any] = {"config": {}, "concurrent": 1, "mixed": False}
+PINNED_DEFAULTS: Mapping[str, Any] = {
+    "config": {},
+    "concurrent": 1,
+    "mixed": False,
+    "service": {},
+}
 """A setting a directory made before it was pinned holds at this value."""
 
 

@@ -345,10 +345,12 @@ def run_bench(
     concurrent: int = 1,
     mixed: bool = False,
     pool: RunPool | None = None,
+    service: Mapping[str, Any] | None = None,
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
-    rollout caps, since results under other knobs are another variant. `concurrent`: the runs
+    rollout caps, since results under other knobs are another variant; so is `service`, the
+    embedded service's settings away from their defaults. `concurrent`: the runs
     of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers);
     `mixed`: N runs of different tasks at a time instead (pinned).
     `pool`: where the runs go (default: a local pool of `workers` processes).
@@ -375,6 +377,7 @@ def run_bench(
             "config": dict(config or {}),
             "concurrent": concurrent,
             "mixed": mixed,
+            "service": dict(service or {}),
         }
     )
     pending = store.pending(list(scenarios))

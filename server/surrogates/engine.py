@@ -47,7 +47,7 @@ from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
 from surrogate.additive import Groups, term_groups
-from surrogate.config import SurrogateConfig
+from surrogate.config import AdditiveMode, SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, fit_classifier, warm_up
@@ -72,7 +72,7 @@ class EngineConfig:
     instant_fit_points: int = SurrogateConfig.instant_fit_points
     instant_fit_iters: int = SurrogateConfig.instant_fit_iters
     instant_refit_factor: float = SurrogateConfig.instant_refit_factor
-    additive: str = SurrogateConfig.additive
+    additive: AdditiveMode = SurrogateConfig.additive
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types

@@ -71,3 +71,21 @@ def test_cpkb_bench_names_a_misspelled_knob(tmp_path: Path) -> None:
     argv = ["bench", "--tasks", "analytic:desk", "--methods", "quasi-random", "--seeds", "1"]
     assert main([*argv, "--out", str(tmp_path / "out"), "--set", "cp_bo.bach=2"]) == 2
     assert not (tmp_path / "out").exists()
+
+
+def test_the_embedded_services_settings_are_pinned_with_the_results(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from server.settings import surrogate_overrides
+
+    monkeypatch.setenv("CPKB_SURROGATE_ADDITIVE", "choices")
+    monkeypatch.setenv("CPKB_PORT", "8123")  # not a surrogate setting: results do not depend on it
+    service = surrogate_overrides()
+    assert service == {"surrogate_additive": "choices"}
+    out = tmp_path / "out"
+    scenarios = [Scenario("analytic:desk", "quasi-random", 0)]
+    done = run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50, service=service)
+    assert done.finished == 1
+    assert json.loads((out / "bench.json").read_text())["service"] == service
+    with pytest.raises(BenchConfigError, match="service"):
+        run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50)
