@@ -276,9 +276,12 @@ class SurrogateEngine:
         with self._cond:
             predictor, z, y, n_fitted = entry.predictor, entry.z, entry.y, entry.n_fitted
             fitted = entry.fit is not None and entry.status == "ready"
-            seen = entry.seen
+            seen, instant = entry.seen, entry.instant
         predictor = served_predictor(predictor, z, y, n_fitted, seen if fitted else ())
-        return TypeModel(entry.space, predictor, str(n_fitted), n_fitted, len(y))
+        # An instant fit and the background fit of as many points are two versions: a planner
+        # holding the short fit fetches the full one when it lands.
+        version = f"{n_fitted}-instant" if instant else str(n_fitted)
+        return TypeModel(entry.space, predictor, version, n_fitted, len(y))
 
     def _catch_up(self, key: Key, entry: _Entry) -> _Entry:
         """A type in use whose points are older than `refresh_s`: load the new points (one

@@ -145,6 +145,14 @@ def test_a_fit_that_lags_far_behind_its_points_gets_an_instant_refit(sqlite_url:
             _post(client, graph, _labelled(12, start=18))  # 30 points: three times 10
             wait_until(lambda: entry.n_fitted == 30, what="the instant refit")
             assert entry.instant and entry.fit.iterations <= 30 and entry.background is first
+            assert _version(client, type_id) == "30-instant"
         assert engine.wait_idle(timeout=300)
         assert entry.n_fitted == 30 and not entry.instant and entry.background is entry.fit
         assert any(warm is first for warm in warms)  # the background fit went on from its own
+        assert _version(client, type_id) == "30"  # another version: planners fetch it anew
+
+
+def _version(client: Any, type_id: str) -> str:
+    answer = client.post("/v1/kbs/default/models", json={"type_ids": [type_id]})
+    assert answer.status_code == 200, answer.text
+    return answer.json()["models"][0]["version"]
