@@ -55,3 +55,15 @@ def test_an_empty_results_directory_is_a_clear_error(tmp_path, capsys):
     assert "no runs" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         _paired().main([str(tmp_path)])
+
+
+def test_an_arm_may_come_from_another_benchs_directory(tmp_path, capsys):
+    alone, together = tmp_path / "alone", tmp_path / "n8"
+    for directory, runs in (
+        (alone, [_run(DESK, "cp-bo", 1, 40), _run(DESK, "cp-bo", 2, 20)]),
+        (together, [_run(DESK, "cp-bo", 1, 10), _run(DESK, "cp-bo", 3, 5)]),
+    ):
+        directory.mkdir()
+        (directory / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
+    assert _paired().main([str(tmp_path), "alone:cp-bo", "n8:cp-bo"]) == 0
+    assert "| desk | 1 | 40.0 | 10.0 | 0.25 |" in capsys.readouterr().out  # seed 1 only
