@@ -9,8 +9,9 @@ that depends on one decision alone, which a few failures spread over the other i
 "the top grasp fails wherever it places". The fit chooses each term's outputscale, so a type
 whose feasibility depends on all its inputs together can turn the terms down.
 
-`surrogate.additive` (the service's setting) says which decisions get a term: `none`, the
-categorical ones (`choices`: grasps, sides), or every decision (`decisions`). A type with one
+`SurrogateConfig.additive` (the service's `CPKB_SURROGATE_ADDITIVE`) says which decisions get
+a term: `none`, the categorical ones (`choices`: grasps, sides), or every decision
+(`decisions`). A type with one
 decision gets none: its term would repeat the main kernel.
 """
 
@@ -34,7 +35,7 @@ Groups = tuple[tuple[int, ...], ...]
 class AdditiveTerm:
     """One term `outputscale * Matern52(z[:, dims] / lengthscale)`."""
 
-    dims: np.ndarray  # (d,) columns of Z, as integers
+    dims: np.ndarray  # (d,) columns of Z (whole numbers, kept as floats for the snapshot)
     lengthscale: np.ndarray  # (d,)
     outputscale: float
 

@@ -215,8 +215,8 @@ class VGPPredictor:
         return ndtr(mean / np.sqrt(1.0 + var))
 
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The latent posterior sd over the prior's (outputscale): 1 away from the inducing
-        points, lower where the variational posterior has learnt from data."""
+        """The latent posterior sd over the prior's (`prior_variance`): 1 away from the
+        inducing points, lower where the variational posterior has learnt from data."""
         _, var = self.latent(z)
         return np.sqrt(np.clip(var / (self.prior_variance + JITTER), 0.0, 1.0))
 
