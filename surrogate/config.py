@@ -26,13 +26,12 @@ class SurrogateConfig:
     process, while the background fit is on its way (0: wait for the background fit)."""
     instant_fit_iters: int = 30
     """That first fit's optimiser steps (the background fit's warm start takes it from there)."""
-    instant_refit_factor: float = 0.0
+    instant_refit_factor: float = 2.0
     """A type whose fit holds fewer than 1/this of its points (and that has at most
     `instant_fit_points`) gets such a short fit too, warm from its fit, while its background
     refit waits in the queue: with many planners at once that queue lags behind the points
-    (0: first models only). 2 is for many planners at once: at 8 they took 0.79 of the rollouts
-    without it; off by default, since planners alone took more rollouts on the shipped desk
-    with it (BENCHMARKS.md, issue 23)."""
+    (0: first models only). 2: eight planners at once took 0.79 of the rollouts without it; a
+    planner alone, 0.97 [0.86, 1.08] (BENCHMARKS.md, issue 23)."""
     additive: AdditiveMode = "none"
     """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
     or `decisions`: `surrogate.additive`)."""
