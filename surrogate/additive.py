@@ -11,8 +11,7 @@ whose feasibility depends on all its inputs together can turn the terms down.
 
 `SurrogateConfig.additive` (the service's `CPKB_SURROGATE_ADDITIVE`) says which decisions get
 a term: `none`, the categorical ones (`choices`: grasps, sides), or every decision
-(`decisions`). A type with one
-decision gets none: its term would repeat the main kernel.
+(`decisions`). A type with one decision gets none: its term would repeat the main kernel.
 """
 
 from __future__ import annotations

@@ -30,8 +30,8 @@ class SurrogateConfig:
     """A type whose fit holds fewer than 1/this of its points (and that has at most
     `instant_fit_points`) gets such a short fit too, warm from its fit, while its background
     refit waits in the queue: with many planners at once that queue lags behind the points
-    (0: first models only). 2: eight planners at once took 0.79 of the rollouts without it; a
-    planner alone, 0.97 [0.86, 1.08] (BENCHMARKS.md, issue 23)."""
+    (0: first models only). On: planners at once took fewer rollouts with it, and a planner
+    alone, whose queue keeps up, no measurably different number (BENCHMARKS.md, issue 23)."""
     additive: AdditiveMode = "none"
     """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
     or `decisions`: `surrogate.additive`)."""
