@@ -68,6 +68,8 @@ class Settings(BaseSettings):
     )
     # Kernel terms of one decision's inputs beside the main kernel: see surrogate.additive.
     surrogate_additive: AdditiveMode = SurrogateConfig.additive
+    # SMOTE a type's minority class before a fit (the paper), or fit its points as they are.
+    surrogate_balance_classes: bool = SurrogateConfig.balance_classes
     # A type in use loads its new points when they are older than this (one indexed query).
     surrogate_refresh_s: float = Field(default=SurrogateConfig.refresh_s, ge=0)
     surrogate_pending_ttl_s: float = Field(default=SurrogateConfig.pending_ttl_s, ge=0)

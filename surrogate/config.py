@@ -35,6 +35,10 @@ class SurrogateConfig:
     additive: AdditiveMode = "none"
     """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
     or `decisions`: `surrogate.additive`)."""
+    balance_classes: bool = True
+    """SMOTE the minority class of a type's points up to the majority before a classifier fit,
+    as the paper does. Off, the fit sees the points as they are, so its constant mean (P far
+    from any point) follows the type's rate of feasible points instead of a coin flip."""
     prior_weight: float = 0.45
     """How far the stated prior moves P(feasible) away from 0.5 at an observed point."""
     prior_lengthscale: float = 0.1

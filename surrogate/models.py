@@ -7,8 +7,8 @@ no Python loop per point, safe to share between threads).
 - `fit_classifier`: variational GP classifier (Matern 5/2 ARD, constant mean, Bernoulli/probit
   likelihood) with at most `max_inducing` inducing points (k-means initialised), trained on at
   most `max_points` points (the boundary first, then both classes alike), SMOTE against class
-  imbalance, warm start from the previous fit. With one class only or fewer than `MIN_POINTS`
-  points it returns the distance prior `PriorPredictor` instead.
+  imbalance (unless asked not to), warm start from the previous fit. With one class only or
+  fewer than `MIN_POINTS` points it returns the distance prior `PriorPredictor` instead.
 - `fit_regression`: exact GP regression (Matern 5/2 ARD, constant mean) for GP-UCB, and for the
   authors' label-regression variant (`fit_label_regression`: GP on +-1 labels, PoF = Phi(mu/sigma)).
 """
@@ -417,9 +417,11 @@ def fit_classifier(
     max_iters: int = 100,
     lr: float = 0.1,
     groups: Groups = (),
+    balance: bool = SurrogateConfig.balance_classes,
 ) -> Fit:
     """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible), with an additive
-    kernel term over each column group of `groups` (`surrogate.additive.term_groups`).
+    kernel term over each column group of `groups` (`surrogate.additive.term_groups`), on
+    classes SMOTE-balanced if `balance`.
 
     At most `max_points` of them are trained on (`_training_subset`; 0: all), so that a fit of
     a large type costs what one of `max_points` does.
@@ -446,7 +448,7 @@ def fit_classifier(
         state = None  # another kernel: nothing to start from
     last = warm.predictor if warm is not None and state is not None else None
     subset = _training_subset(z, y, max_points, seed, last)
-    zb, yb = _balance(z[subset], y[subset], seed)
+    zb, yb = _balance(z[subset], y[subset], seed) if balance else (z[subset], y[subset])
     m = min(max_inducing, len(np.unique(zb, axis=0)))
     if state is not None and state["m"] == m:
         inducing = torch.as_tensor(state["model"]["variational_strategy.inducing_points"])

@@ -30,6 +30,7 @@ def install(app: FastAPI) -> None:
         instant_fit_iters=settings.surrogate_instant_fit_iters,
         instant_refit_factor=settings.surrogate_instant_refit_factor,
         additive=settings.surrogate_additive,
+        balance_classes=settings.surrogate_balance_classes,
         refresh_s=settings.surrogate_refresh_s,
         pending_ttl_s=settings.surrogate_pending_ttl_s,
         prefit_types=settings.surrogate_prefit_types,

@@ -73,6 +73,7 @@ class EngineConfig:
     instant_fit_iters: int = SurrogateConfig.instant_fit_iters
     instant_refit_factor: float = SurrogateConfig.instant_refit_factor
     additive: AdditiveMode = SurrogateConfig.additive
+    balance_classes: bool = SurrogateConfig.balance_classes
     refresh_s: float = SurrogateConfig.refresh_s
     pending_ttl_s: float = SurrogateConfig.pending_ttl_s
     prefit_types: int = SurrogateConfig.prefit_types
@@ -525,7 +526,17 @@ class SurrogateEngine:
         timer.start()
 
     def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None, groups: Groups = ()) -> Fit:
-        args = (z, y, 0, warm, self.config.max_inducing, self.config.max_fit_points, groups)
+        config = self.config
+        args = (
+            z,
+            y,
+            0,
+            warm,
+            config.max_inducing,
+            config.max_fit_points,
+            groups,
+            config.balance_classes,
+        )
         fitter = self._fitter_for_next_fit()
         try:
             return fitter.fit(*args)
@@ -591,6 +602,7 @@ class SurrogateEngine:
             max_points=config.max_fit_points,
             max_iters=config.instant_fit_iters,
             groups=term_groups(entry.encoder, config.additive),
+            balance=config.balance_classes,
         )
         seen = seen_choices(entry.encoder, z[:n])
         with self._cond:

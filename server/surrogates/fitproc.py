@@ -31,6 +31,7 @@ def fit_job(
     max_inducing: int,
     max_points: int = SurrogateConfig.max_fit_points,
     groups: Groups = (),
+    balance: bool = SurrogateConfig.balance_classes,
 ) -> Fit:
     return fit_classifier(
         z,
@@ -40,4 +41,5 @@ def fit_job(
         max_inducing=max_inducing,
         max_points=max_points,
         groups=groups,
+        balance=balance,
     )
