@@ -110,6 +110,17 @@ def test_imbalanced_classes_still_find_the_small_feasible_region() -> None:
     assert fit.predictor.proba(np.array([[0.2, 0.2]]))[0] < 0.5
 
 
+def test_without_balancing_a_fit_rates_unexplored_points_at_its_types_rate() -> None:
+    """Labels with no structure, one in ten feasible: SMOTE lifts the minority so the fit says
+    about a coin flip's worth everywhere; fitted as they are, the points say about one in ten."""
+    rng = np.random.default_rng(0)
+    z, y = rng.random((80, 3)), rng.random(80) < 0.1
+    elsewhere = np.random.default_rng(1).random((200, 3))
+    balanced = fit_classifier(z, y, seed=0).predictor.proba(elsewhere).mean()
+    as_they_are = fit_classifier(z, y, seed=0, balance=False).predictor.proba(elsewhere).mean()
+    assert as_they_are < 0.15 and balanced > as_they_are + 0.05
+
+
 def test_regression_fits_and_reports_uncertainty() -> None:
     rng = np.random.default_rng(8)
     z = rng.random((30, 2))
