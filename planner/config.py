@@ -235,6 +235,15 @@ class KnowledgeConfig:
     (`surrogate.models.PriorPredictor.with_base_rate`): a decision whose constraints failed
     every time so far looks worse the more it failed. Applies where the planner maximises MPF
     itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
+    model_evidence: bool = False
+    """Where this planner maximises MPF, a type's fetched model is averaged with the stated
+    prior on this run's own points of the type, each weighted by how well it predicted those
+    points before they were known (Bayesian model averaging on the prequential likelihood,
+    `planner.knowledge.local.Evidence`): a model learnt from other tasks' points (another
+    body, another start) that keeps promising what fails here hands the choice back to this
+    run's own failures; one that keeps being right keeps it. The paper trusts every model."""
+    model_evidence_prior: float = 0.8
+    """With `model_evidence`, the weight of the fetched model before this run has any point."""
     spread_walls: bool = SurrogateConfig.spread_walls
     """Where this planner maximises MPF, the margin rule's spread keeps a node's children off
     the faces of its box (`surrogate.avoid.AvoidSet.spread`); off, its most spread point may
@@ -282,6 +291,8 @@ class KnowledgeConfig:
         )
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
+        if not 0.0 < self.model_evidence_prior < 1.0:
+            raise ConfigError("knowledge.model_evidence_prior must lie strictly between 0 and 1")
 
 
 @dataclass(frozen=True)
@@ -342,6 +353,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.body_sizes": False,
             "knowledge.size_inputs": False,
             "knowledge.prior_base_rate": False,
+            "knowledge.model_evidence": False,
         },
     ),
 }

@@ -148,6 +148,24 @@ class RecentPoints:
 
 
 @dataclass(frozen=True)
+class Mixture:
+    """`weight` times one predictor's answer plus the rest times another's: a Bayesian model
+    average of two predictors of one type, `weight` the first's posterior probability."""
+
+    first: FeasibilityPredictor
+    second: FeasibilityPredictor
+    weight: float
+
+    def proba(self, z: np.ndarray) -> np.ndarray:
+        w = self.weight
+        return w * self.first.proba(z) + (1.0 - w) * self.second.proba(z)
+
+    def uncertainty(self, z: np.ndarray) -> np.ndarray:
+        w = self.weight
+        return w * self.first.uncertainty(z) + (1.0 - w) * self.second.uncertainty(z)
+
+
+@dataclass(frozen=True)
 class UnseenChoices:
     """A fit answers for the choices of its categorical variables that its points hold; for a
     choice that none of them has (a grasp the earlier tasks never tried), `prior` answers: the

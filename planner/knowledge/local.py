@@ -31,6 +31,7 @@ import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -41,13 +42,16 @@ from surrogate import snapshot
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import FeasibilityPredictor, PriorPredictor, RecentPoints
+from surrogate.models import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
 from surrogate.suggest import suggest as suggest_point
 
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
+# One point moves the evidence by at most log(0.95 / 0.05) = 2.9: a model that put 0.99 on a
+# placement that failed is wrong, but not a hundred times as wrong as one that put 0.9 there.
+EVIDENCE_CLIP = 0.05
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
 Shared = tuple[dict[str, Value], tuple[tuple[str, tuple[tuple[str, str], ...]], ...]]
 
@@ -94,6 +98,26 @@ def fetch_from(
 
 
 @dataclass
+class Evidence:
+    """How much better a type's fetched model predicted this run's own points than the stated
+    prior on this run's earlier points did: the log Bayes factor of their prequential
+    likelihoods, each point predicted by both before it was known. `weight` is then the
+    model's posterior probability in a Bayesian average of the two, from a prior one."""
+
+    log_ratio: float = 0.0
+
+    def observe(self, p_model: float, p_own: float, feasible: bool) -> None:
+        p_model, p_own = np.clip([p_model, p_own], EVIDENCE_CLIP, 1.0 - EVIDENCE_CLIP)
+        if not feasible:
+            p_model, p_own = 1.0 - p_model, 1.0 - p_own
+        self.log_ratio += float(np.log(p_model) - np.log(p_own))
+
+    def weight(self, prior: float) -> float:
+        logit = np.log(prior) - np.log1p(-prior) + self.log_ratio
+        return float(1.0 / (1.0 + np.exp(-logit)))
+
+
+@dataclass
 class _Model:
     space: dict[str, Domain]
     fitted: FeasibilityPredictor
@@ -105,39 +129,76 @@ class _Model:
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
     base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
+    evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
+    mine: list[tuple[dict[str, Value], bool]] = field(default_factory=list)  # every own point
+    evidence_prior: float = KnowledgeConfig.model_evidence_prior
     _predictor: FeasibilityPredictor | None = None
+    _combined: FeasibilityPredictor | None = None
 
     @property
     def fetched(self) -> bool:
         return bool(self.version)
 
     def predictor(self) -> FeasibilityPredictor:
+        """`model()`, averaged with the stated prior on this run's own points by their
+        `evidence` when it is kept and there are such points."""
+        if self._predictor is None:
+            combined = self.model()
+            if self.evidence is None or not self.mine:
+                self._predictor = combined
+            else:
+                weight = self.evidence.weight(self.evidence_prior)
+                self._predictor = Mixture(combined, self._own_prior(), weight)
+        return self._predictor
+
+    def _own_prior(self) -> PriorPredictor:
+        """The stated prior on this run's own points alone: what it knows without the model."""
+        encoder = SpaceEncoder(self.space)
+        feasible = [x for x, ok in self.mine if ok]
+        infeasible = [x for x, ok in self.mine if not ok]
+        empty = np.zeros((0, encoder.dim))
+        prior = PriorPredictor(
+            encoder.encode_points(feasible) if feasible else empty,
+            encoder.encode_points(infeasible) if infeasible else empty,
+        )
+        return prior.with_base_rate() if self.base_rate else prior
+
+    def model(self) -> FeasibilityPredictor:
         """The fetched predictor with this planner's points since weighed in; for a type this
         planner created and has not fetched yet, the stated prior on its own points (what the
         service serves for a type with so few points)."""
-        if self._predictor is None:
-            feasible = [x for _, x, ok in self.own + self.others if ok]
-            infeasible = [x for _, x, ok in self.own + self.others if not ok]
-            fitted = self.fitted
-            if self.base_rate:
-                fitted = with_base_rate(fitted, len(feasible), len(infeasible))
-            if self.fetched and not feasible and not infeasible:
-                self._predictor = fitted
-                return self._predictor
-            encoder = SpaceEncoder(self.space)
-            empty = np.zeros((0, encoder.dim))
-            z_ok = encoder.encode_points(feasible) if feasible else empty
-            z_bad = encoder.encode_points(infeasible) if infeasible else empty
-            if self.fetched:
-                self._predictor = RecentPoints(fitted, z_ok, z_bad)
-            else:
-                prior = PriorPredictor(z_ok, z_bad)
-                self._predictor = prior.with_base_rate() if self.base_rate else prior
-        return self._predictor
+        if self._combined is None:
+            self._combined = self._weigh_in()
+        return self._combined
+
+    def _weigh_in(self) -> FeasibilityPredictor:
+        feasible = [x for _, x, ok in self.own + self.others if ok]
+        infeasible = [x for _, x, ok in self.own + self.others if not ok]
+        fitted = self.fitted
+        if self.base_rate:
+            fitted = with_base_rate(fitted, len(feasible), len(infeasible))
+        if self.fetched and not feasible and not infeasible:
+            return fitted
+        encoder = SpaceEncoder(self.space)
+        empty = np.zeros((0, encoder.dim))
+        z_ok = encoder.encode_points(feasible) if feasible else empty
+        z_bad = encoder.encode_points(infeasible) if infeasible else empty
+        if self.fetched:
+            return RecentPoints(fitted, z_ok, z_bad)
+        prior = PriorPredictor(z_ok, z_bad)
+        return prior.with_base_rate() if self.base_rate else prior
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
+        """One of this run's own points; with `evidence`, first scored by the model and by the
+        stated prior on this run's earlier points, as each predicted it before it was known."""
+        if self.evidence is not None:
+            z = SpaceEncoder(self.space).encode_points([dict(x)])
+            p_model = float(self.model().proba(z)[0])
+            p_own = float(self._own_prior().proba(z)[0])
+            self.evidence.observe(p_model, p_own, feasible)
         self.own.append((batch, dict(x), feasible))
-        self._predictor = None
+        self.mine.append((dict(x), feasible))
+        self._predictor = self._combined = None
 
 
 def with_base_rate(
@@ -180,12 +241,16 @@ class LocalSurrogates:
         pending_clock: Callable[[], float] = time.monotonic,
         prior_base_rate: bool = KnowledgeConfig.prior_base_rate,
         spread_walls: bool = KnowledgeConfig.spread_walls,
+        model_evidence: bool = KnowledgeConfig.model_evidence,
+        model_evidence_prior: float = KnowledgeConfig.model_evidence_prior,
     ) -> None:
         """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
         until a point answers them, so that how long a run waits does not change its course."""
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
         self.prior_base_rate = prior_base_rate
+        self.model_evidence = model_evidence
+        self.model_evidence_prior = model_evidence_prior
         self._models: dict[str, _Model] = {}
         self.spread_walls = spread_walls
         self._config = OptimizerConfig(walls=spread_walls)
@@ -227,6 +292,7 @@ class LocalSurrogates:
                 fetched_at=0,
                 born_with=stored_with,
                 base_rate=self.prior_base_rate,
+                **self._carried(None),
             )
         return True
 
@@ -244,7 +310,7 @@ class LocalSurrogates:
         model = self._models.get(type_id)
         if model is not None:
             model.others.append((point_id, dict(x), feasible))
-            model._predictor = None
+            model._predictor = model._combined = None
             self._learned = max(self._learned, point_id)
 
     def served(self, limit: int) -> list[PendingPoint]:
@@ -316,6 +382,19 @@ class LocalSurrogates:
             self._executor = None
         self._in_flight = None
 
+    def _carried(self, previous: _Model | None) -> dict[str, Any]:
+        """What a type's model keeps from the one it replaces: this run's points and the
+        evidence they gave (a new snapshot holds the points, not how it would have predicted
+        them)."""
+        evidence = previous.evidence if previous is not None else None
+        if evidence is None and self.model_evidence:
+            evidence = Evidence()
+        return {
+            "evidence": evidence,
+            "evidence_prior": self.model_evidence_prior,
+            "mine": list(previous.mine) if previous is not None else [],
+        }
+
     def _stale(self, type_id: str, rollout: int, stored: int) -> bool:
         model = self._models[type_id]
         if not model.fetched:
@@ -384,6 +463,7 @@ class LocalSurrogates:
                 own=own,
                 others=others,
                 base_rate=self.prior_base_rate,
+                **self._carried(previous),
             )
         for type_id in type_ids:
             if type_id not in self._models:

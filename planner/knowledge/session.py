@@ -181,6 +181,8 @@ class KnowledgeSession:
                 refresh_rollouts=self.config.refresh_rollouts,
                 prior_base_rate=self.config.prior_base_rate,
                 spread_walls=self.config.spread_walls,
+                model_evidence=self.config.model_evidence,
+                model_evidence_prior=self.config.model_evidence_prior,
                 # A lifetime in wall time would make a run's course depend on its waits.
                 pending_clock=_never if self.config.deterministic else time.monotonic,
             )

@@ -249,3 +249,49 @@ def test_a_type_this_planner_creates_guides_at_once_as_the_service_would(live_kb
         served = client.predict(live_kb.name, new[0].type_id, xs)
         assert list(mine) == pytest.approx(served, rel=1e-6, abs=1e-9) and min(served) < 0.5
         session.close()
+
+
+PLACE = {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}
+
+
+def _learnt_elsewhere() -> InMemoryModels:
+    """A type another task taught: a placement is feasible where its first coordinate > 0.5."""
+    rng = np.random.default_rng(3)
+    points = [({"#pose": list(x)}, bool(x[0] > 0.5)) for x in rng.random((40, 2))]
+    memory = InMemoryModels()
+    memory.add("T", space_from_json({"#pose": PLACE}), points)
+    return memory
+
+
+def _after_own_points(evidence: bool, feasible: bool) -> tuple[LocalSurrogates, np.ndarray]:
+    """This run's six placements where the model promised success, all `feasible`; and its
+    P(feasible) at two places it has not tried, one on either side."""
+    local = LocalSurrogates(
+        fetch_from(_learnt_elsewhere(), OPTIMIZER), background=False, model_evidence=evidence
+    )
+    request = SuggestIn.model_validate(
+        {
+            "space": {"p": PLACE},
+            "constraints": [{"type_id": "T", "bind": {"#pose": "p"}}],
+        }
+    )
+    local.suggest(request, rollout=0, stored=0)
+    for i in range(6):
+        local.note("T", {"#pose": [0.6 + 0.07 * i, 0.9]}, feasible, batch=1)
+    untried = [{"#pose": [0.75, 0.1]}, {"#pose": [0.25, 0.1]}]
+    z = SpaceEncoder(space_from_json({"#pose": PLACE})).encode_points(untried)
+    return local, local.model("T").predictor.proba(z)
+
+
+def test_a_model_that_keeps_promising_what_fails_here_hands_over_to_this_runs_points() -> None:
+    _, (right_side, left_side) = _after_own_points(evidence=False, feasible=False)
+    assert right_side - left_side > 0.5  # the other task's lesson, unshaken by six failures
+    doubted, (right_side, left_side) = _after_own_points(evidence=True, feasible=False)
+    assert abs(right_side - left_side) < 0.15  # this run's evidence speaks, and it has none there
+    assert doubted._models["T"].evidence.weight(0.8) < 0.1
+
+
+def test_a_model_that_keeps_being_right_here_keeps_its_say() -> None:
+    local, (right_side, left_side) = _after_own_points(evidence=True, feasible=True)
+    assert local._models["T"].evidence.weight(0.8) > 0.9
+    assert right_side - left_side > 0.5
