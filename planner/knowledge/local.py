@@ -130,7 +130,7 @@ class _Model:
     born_with: int = 0  # a type this planner created: the poster batch that stores it
     base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
-    mine: list[tuple[dict[str, Value], bool]] = field(default_factory=list)  # every own point
+    mine: list[tuple[dict[str, Value], bool]] = field(default_factory=list)  # own, for evidence
     evidence_prior: float = KnowledgeConfig.model_evidence_prior
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
@@ -196,8 +196,8 @@ class _Model:
             p_model = float(self.model().proba(z)[0])
             p_own = float(self._own_prior().proba(z)[0])
             self.evidence.observe(p_model, p_own, feasible)
+            self.mine.append((dict(x), feasible))
         self.own.append((batch, dict(x), feasible))
-        self.mine.append((dict(x), feasible))
         self._predictor = self._combined = None
 
 
