@@ -28,10 +28,9 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -99,21 +98,26 @@ def fetch_from(
 
 @dataclass
 class Evidence:
-    """How much better a type's fetched model predicted this run's own points than the stated
-    prior on this run's earlier points did: the log Bayes factor of their prequential
-    likelihoods, each point predicted by both before it was known. `weight` is then the
-    model's posterior probability in a Bayesian average of the two, from a prior one."""
+    """This run's own points of a type, and how much better the type's fetched model predicted
+    them than the stated prior on this run's earlier points did: the log Bayes factor of their
+    prequential likelihoods, each point predicted by both before it was known. `weight` is the
+    model's posterior probability in a Bayesian average of the two, from `prior`. Kept across
+    refetches: a new snapshot holds the points, not how it would have predicted them."""
 
+    prior: float = KnowledgeConfig.model_evidence_prior
     log_ratio: float = 0.0
+    points: list[tuple[dict[str, Value], bool]] = field(default_factory=list)
 
-    def observe(self, p_model: float, p_own: float, feasible: bool) -> None:
+    def observe(self, x: Mapping[str, Value], feasible: bool, p_model: float, p_own: float) -> None:
         p_model, p_own = np.clip([p_model, p_own], EVIDENCE_CLIP, 1.0 - EVIDENCE_CLIP)
         if not feasible:
             p_model, p_own = 1.0 - p_model, 1.0 - p_own
         self.log_ratio += float(np.log(p_model) - np.log(p_own))
+        self.points.append((dict(x), feasible))
 
-    def weight(self, prior: float) -> float:
-        logit = np.log(prior) - np.log1p(-prior) + self.log_ratio
+    @property
+    def weight(self) -> float:
+        logit = np.log(self.prior) - np.log1p(-self.prior) + self.log_ratio
         return float(1.0 / (1.0 + np.exp(-logit)))
 
 
@@ -130,8 +134,6 @@ class _Model:
     born_with: int = 0  # a type this planner created: the poster batch that stores it
     base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
-    mine: list[tuple[dict[str, Value], bool]] = field(default_factory=list)  # own, for evidence
-    evidence_prior: float = KnowledgeConfig.model_evidence_prior
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
 
@@ -144,23 +146,21 @@ class _Model:
         `evidence` when it is kept and there are such points."""
         if self._predictor is None:
             combined = self.model()
-            if self.evidence is None or not self.mine:
+            if self.evidence is None or not self.evidence.points:
                 self._predictor = combined
             else:
-                weight = self.evidence.weight(self.evidence_prior)
-                self._predictor = Mixture(combined, self._own_prior(), weight)
+                self._predictor = Mixture(combined, self._own_prior(), self.evidence.weight)
         return self._predictor
 
     def _own_prior(self) -> PriorPredictor:
         """The stated prior on this run's own points alone: what it knows without the model."""
-        encoder = SpaceEncoder(self.space)
-        feasible = [x for x, ok in self.mine if ok]
-        infeasible = [x for x, ok in self.mine if not ok]
-        empty = np.zeros((0, encoder.dim))
-        prior = PriorPredictor(
-            encoder.encode_points(feasible) if feasible else empty,
-            encoder.encode_points(infeasible) if infeasible else empty,
-        )
+        assert self.evidence is not None
+        return self._stated_prior(*_by_label(self.evidence.points))
+
+    def _stated_prior(
+        self, feasible: list[dict[str, Value]], infeasible: list[dict[str, Value]]
+    ) -> PriorPredictor:
+        prior = PriorPredictor(*_encoded(self.space, feasible, infeasible))
         return prior.with_base_rate() if self.base_rate else prior
 
     def model(self) -> FeasibilityPredictor:
@@ -172,21 +172,15 @@ class _Model:
         return self._combined
 
     def _weigh_in(self) -> FeasibilityPredictor:
-        feasible = [x for _, x, ok in self.own + self.others if ok]
-        infeasible = [x for _, x, ok in self.own + self.others if not ok]
+        feasible, infeasible = _by_label((x, ok) for _, x, ok in self.own + self.others)
+        if not self.fetched:
+            return self._stated_prior(feasible, infeasible)
         fitted = self.fitted
         if self.base_rate:
             fitted = with_base_rate(fitted, len(feasible), len(infeasible))
-        if self.fetched and not feasible and not infeasible:
+        if not feasible and not infeasible:
             return fitted
-        encoder = SpaceEncoder(self.space)
-        empty = np.zeros((0, encoder.dim))
-        z_ok = encoder.encode_points(feasible) if feasible else empty
-        z_bad = encoder.encode_points(infeasible) if infeasible else empty
-        if self.fetched:
-            return RecentPoints(fitted, z_ok, z_bad)
-        prior = PriorPredictor(z_ok, z_bad)
-        return prior.with_base_rate() if self.base_rate else prior
+        return RecentPoints(fitted, *_encoded(self.space, feasible, infeasible))
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
         """One of this run's own points; with `evidence`, first scored by the model and by the
@@ -195,10 +189,34 @@ class _Model:
             z = SpaceEncoder(self.space).encode_points([dict(x)])
             p_model = float(self.model().proba(z)[0])
             p_own = float(self._own_prior().proba(z)[0])
-            self.evidence.observe(p_model, p_own, feasible)
-            self.mine.append((dict(x), feasible))
+            self.evidence.observe(x, feasible, p_model, p_own)
         self.own.append((batch, dict(x), feasible))
         self._predictor = self._combined = None
+
+
+def _by_label(
+    points: Iterable[tuple[dict[str, Value], bool]],
+) -> tuple[list[dict[str, Value]], list[dict[str, Value]]]:
+    """The feasible points' decisions, then the infeasible ones'."""
+    feasible: list[dict[str, Value]] = []
+    infeasible: list[dict[str, Value]] = []
+    for x, ok in points:
+        (feasible if ok else infeasible).append(x)
+    return feasible, infeasible
+
+
+def _encoded(
+    space: Mapping[str, Domain],
+    feasible: list[dict[str, Value]],
+    infeasible: list[dict[str, Value]],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Both lists in the type's GP inputs, `(a, D)` and `(b, D)`."""
+    encoder = SpaceEncoder(space)
+    empty = np.zeros((0, encoder.dim))
+    return (
+        encoder.encode_points(feasible) if feasible else empty,
+        encoder.encode_points(infeasible) if infeasible else empty,
+    )
 
 
 def with_base_rate(
@@ -292,7 +310,7 @@ class LocalSurrogates:
                 fetched_at=0,
                 born_with=stored_with,
                 base_rate=self.prior_base_rate,
-                **self._carried(None),
+                evidence=self._evidence(None),
             )
         return True
 
@@ -382,18 +400,14 @@ class LocalSurrogates:
             self._executor = None
         self._in_flight = None
 
-    def _carried(self, previous: _Model | None) -> dict[str, Any]:
-        """What a type's model keeps from the one it replaces: this run's points and the
-        evidence they gave (a new snapshot holds the points, not how it would have predicted
-        them)."""
-        evidence = previous.evidence if previous is not None else None
-        if evidence is None and self.model_evidence:
-            evidence = Evidence()
-        return {
-            "evidence": evidence,
-            "evidence_prior": self.model_evidence_prior,
-            "mine": list(previous.mine) if previous is not None else [],
-        }
+    def _evidence(self, previous: _Model | None) -> Evidence | None:
+        """The evidence a type's new model keeps from the one it replaces (a fresh one for a
+        type new here), if this planner weighs evidence."""
+        if not self.model_evidence:
+            return None
+        if previous is not None and previous.evidence is not None:
+            return previous.evidence
+        return Evidence(prior=self.model_evidence_prior)
 
     def _stale(self, type_id: str, rollout: int, stored: int) -> bool:
         model = self._models[type_id]
@@ -463,7 +477,7 @@ class LocalSurrogates:
                 own=own,
                 others=others,
                 base_rate=self.prior_base_rate,
-                **self._carried(previous),
+                evidence=self._evidence(previous),
             )
         for type_id in type_ids:
             if type_id not in self._models:

@@ -288,10 +288,10 @@ def test_a_model_that_keeps_promising_what_fails_here_hands_over_to_this_runs_po
     assert right_side - left_side > 0.5  # the other task's lesson, unshaken by six failures
     doubted, (right_side, left_side) = _after_own_points(evidence=True, feasible=False)
     assert abs(right_side - left_side) < 0.15  # this run's evidence speaks, and it has none there
-    assert doubted._models["T"].evidence.weight(0.8) < 0.1
+    assert doubted._models["T"].evidence.weight < 0.1
 
 
 def test_a_model_that_keeps_being_right_here_keeps_its_say() -> None:
     local, (right_side, left_side) = _after_own_points(evidence=True, feasible=True)
-    assert local._models["T"].evidence.weight(0.8) > 0.9
+    assert local._models["T"].evidence.weight > 0.9
     assert right_side - left_side > 0.5
