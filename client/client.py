@@ -52,6 +52,8 @@ from client.models import (
     PointsSinceOut,
     PredictIn,
     PredictOut,
+    StoredFeasibleIn,
+    StoredFeasibleOut,
     SuggestIn,
     SuggestOut,
     TypeDetail,
@@ -276,6 +278,14 @@ class CpkbClient:
         )
         body = self._body(request)
         return self._call(PointsSinceOut, "POST", f"/v1/kbs/{kb}/points/since", json=body)
+
+    def stored_feasible(
+        self, kb: str, type_ids: Iterable[str], per_type: int = 8
+    ) -> StoredFeasibleOut:
+        """The newest `per_type` feasible points of each of these types, with their run and
+        rollout."""
+        body = self._body(StoredFeasibleIn(type_ids=list(type_ids), per_type=per_type))
+        return self._call(StoredFeasibleOut, "POST", f"/v1/kbs/{kb}/points/feasible", json=body)
 
     def iter_points(self, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[PointOut]:
         """Every point of a type in insertion order, fetched page by page."""

@@ -360,6 +360,7 @@ class PointsPage(BaseModel):
 
 
 MAX_WATCHED_TYPES = 512  # types in one `points/since` request
+MAX_STORED_FEASIBLE = 100  # points per type in one `points/feasible` answer
 
 
 class PointsSinceIn(_Strict):
@@ -398,12 +399,30 @@ class PointsSinceIn(_Strict):
     )
 
 
+class StoredFeasibleIn(_Strict):
+    """The newest feasible points the knowledge base holds of each of these types, with the
+    run and rollout that passed them: candidates for a planner starting on types earlier runs
+    met, so that a binding found before is scored before the search has wandered near it (a
+    fitted model rates a narrow feasible region high only close to its points). A type ID the
+    knowledge base does not hold has none."""
+
+    model_config = ConfigDict(
+        json_schema_extra={"examples": [{"type_ids": [_TYPE_ID_EXAMPLE], "per_type": 8}]}
+    )
+
+    type_ids: list[Label] = Field(max_length=MAX_WATCHED_TYPES, description="The types.")
+    per_type: int = Field(
+        default=8, ge=1, le=MAX_STORED_FEASIBLE, description="At most this many per type."
+    )
+
+
 class LivePoint(BaseModel):
     point_id: int
     type_id: str
     x: dict[str, Value]
     feasible: bool
     run: str | None = None
+    rollout: int | None = None
 
 
 class PointsSinceOut(BaseModel):
@@ -413,6 +432,12 @@ class PointsSinceOut(BaseModel):
     points: list[LivePoint]
     cursor: int
     more: bool = False
+
+
+class StoredFeasibleOut(BaseModel):
+    """Per type the newest first."""
+
+    points: list[LivePoint]
 
 
 class PredictIn(_Strict):

@@ -273,6 +273,11 @@ class KnowledgeConfig:
     live_hints_whole_only: bool = False
     """Prefer only a run's whole chain (it passed every constraint of the request); the other
     hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
+    stored_hints: int = 0
+    """The newest feasible points of each type met before this run, read from the knowledge
+    base when the run starts and scored as candidates as other planners' are (`live_hints`),
+    each earlier rollout's passed decisions merged into one chain: a binding an earlier task
+    found is tried before a fit rates its narrow neighbourhood high; 0: none."""
     live_pending: bool = False
     """With `live_points`, also report this planner's pending suggestions to the service and
     keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
@@ -288,6 +293,7 @@ class KnowledgeConfig:
             live_every_rollouts=1,
             live_hints=0,
             live_hints_limit=1,
+            stored_hints=0,
         )
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")

@@ -110,6 +110,7 @@ class PlanResult:
     live_types: int = 0  # types other planners created during the run, activated from them
     pending_shared: int = 0  # other planners' pending suggestions this run was kept away from
     peer_hints: int = 0  # other planners' feasible points its suggestions scored as candidates
+    stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
@@ -266,6 +267,7 @@ def _plan_with_knowledge(
             live_types=stats.live_types,
             pending_shared=stats.pending_shared,
             peer_hints=stats.peer_hints,
+            stored_hints=stats.stored_hints,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],

@@ -13,7 +13,8 @@ its own suggestions then keep away from, as the service's `suggest` keeps concur
 apart. When it closes it withdraws what is left.
 
 The other planners' feasible points are also kept apart (`PeerHints`), a few per type, as
-candidates for this planner's MPF maximisation: a fresh point changes its model only within a
+candidates for this planner's MPF maximisation (and, with `knowledge.stored_hints`, those that
+earlier runs stored, read once when the run starts): a fresh point changes its model only within a
 short reach (`surrogate.models.RecentPoints`), which the maximiser's raw samples rarely land in,
 so without them a binding another planner has just found stays unseen here until a fit has
 taken it in, and with several planners on one service the fits lag.
@@ -185,11 +186,15 @@ class PeerHints:
         self._points: dict[str, list[tuple[int, str | None, dict[str, Value]]]] = {}
         self.used = 0  # hints handed to suggestions
 
-    def add(self, point: LivePoint) -> None:
+    def add(self, point: LivePoint, *, by_rollout: bool = False) -> None:
+        """Keep a feasible point; its chain is its run's, or with `by_rollout` its rollout's
+        (a stored run's rollouts are over: each passed its own decisions)."""
         if not point.feasible or self.per_type <= 0:
             return
+        chain = f"{point.run}#{point.rollout}" if by_rollout else point.run
         kept = self._points.setdefault(point.type_id, [])
-        kept.append((point.point_id, point.run, dict(point.x)))
+        kept.append((point.point_id, chain, dict(point.x)))
+        kept.sort(key=lambda item: item[0])
         del kept[: -self.per_type]
 
     def for_request(

@@ -97,6 +97,7 @@ class KnowledgeStats:
     live_types: int = 0  # types other planners created during the run, activated from them
     pending_shared: int = 0  # other planners' pending suggestions local ones were kept from
     peer_hints: int = 0  # other planners' feasible points scored as candidates (`PeerHints`)
+    stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -210,13 +211,16 @@ class KnowledgeSession:
             and hasattr(client, "exchange_pending")
             else None
         )
+        per_type = max(
+            self.config.live_hints if self.live is not None else 0, self.config.stored_hints
+        )
         self.hints = (
             PeerHints(
-                self.config.live_hints,
+                per_type,
                 self.config.live_hints_limit,
                 whole_only=self.config.live_hints_whole_only,
             )
-            if self.live is not None and self.config.live_hints > 0
+            if self.local is not None and per_type > 0
             else None
         )
         self._unmatched: dict[Key, FailureGraph] = {}
@@ -238,8 +242,29 @@ class KnowledgeSession:
                         self._unmatched[key] = fg
         found = self._match(only_existing=True)
         self.stats.prematched = found
+        self._take_stored_hints()
         if self.live is not None:
             self.live.start()  # what is stored by now is in the models this run fetches
+
+    def _take_stored_hints(self) -> None:
+        """Keep the stored feasible points of the types prematch found (`stored_hints`)."""
+        if self.hints is None or self.config.stored_hints <= 0 or not self._types:
+            return
+        if not hasattr(self.client, "stored_feasible"):
+            return
+        started = time.perf_counter()
+        try:
+            answer = self.client.stored_feasible(
+                self.kb, sorted(self._types)[:MAX_WATCHED_TYPES], self.config.stored_hints
+            )
+        except Exception as exc:  # a knowledge-base outage must not stop the search
+            self.stats.event(f"stored hints failed: {exc}")
+            return
+        finally:
+            self.stats.spent("match", time.perf_counter() - started)
+        for point in answer.points:
+            self.hints.add(point, by_rollout=True)
+        self.stats.stored_hints = len(answer.points)
 
     def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
         if key not in self._graphs:

@@ -29,6 +29,8 @@ from client.models import (
     PointsPage,
     PointsSinceIn,
     PointsSinceOut,
+    StoredFeasibleIn,
+    StoredFeasibleOut,
 )
 from server.db import Store
 from server.errors import Conflict, InvalidInput
@@ -360,20 +362,55 @@ def points_since(store: Store, kb: str, request: PointsSinceIn) -> PointsSinceOu
             TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(sorted(set(request.type_ids)))
         )
         type_ids: dict[int, str] = {pk: type_id for pk, type_id in session.execute(watched)}
-        query = select(
-            PointRow.id, PointRow.type_pk, PointRow.x, PointRow.feasible, PointRow.run
-        ).where(PointRow.type_pk.in_(list(type_ids)), PointRow.id > after, PointRow.id <= top)
+        query = select(*_LIVE_COLUMNS).where(
+            PointRow.type_pk.in_(list(type_ids)), PointRow.id > after, PointRow.id <= top
+        )
         if request.exclude_run is not None:
             query = query.where(or_(PointRow.run.is_(None), PointRow.run != request.exclude_run))
         rows = session.execute(query.order_by(PointRow.id).limit(request.limit + 1)).all()
     more = len(rows) > request.limit
     rows = rows[: request.limit]
-    points = [
-        LivePoint(point_id=pid, type_id=type_ids[pk], x=x, feasible=ok, run=run)
-        for pid, pk, x, ok, run in rows
-    ]
+    points = [_live_point(row, type_ids) for row in rows]
     cursor = rows[-1][0] if more else max(top, after)
     return PointsSinceOut(points=points, cursor=cursor, more=more)
+
+
+def stored_feasible(store: Store, kb: str, request: StoredFeasibleIn) -> StoredFeasibleOut:
+    """The newest `per_type` feasible points of each type, per type the newest first."""
+    with store.transaction() as session:
+        kb_pk = kb_id(session, kb)
+        known = select(TypeRow.id, TypeRow.type_id).where(
+            TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(sorted(set(request.type_ids)))
+        )
+        type_ids: dict[int, str] = {pk: type_id for pk, type_id in session.execute(known)}
+        rows = [
+            row
+            for pk in sorted(type_ids, key=type_ids.__getitem__)
+            for row in session.execute(
+                select(*_LIVE_COLUMNS)
+                .where(PointRow.type_pk == pk, PointRow.feasible.is_(True))
+                .order_by(PointRow.id.desc())
+                .limit(request.per_type)
+            ).all()
+        ]
+    return StoredFeasibleOut(points=[_live_point(row, type_ids) for row in rows])
+
+
+_LIVE_COLUMNS = (
+    PointRow.id,
+    PointRow.type_pk,
+    PointRow.x,
+    PointRow.feasible,
+    PointRow.run,
+    PointRow.rollout,
+)
+
+
+def _live_point(row: Any, type_ids: dict[int, str]) -> LivePoint:
+    pid, pk, x, feasible, run, rollout = row
+    return LivePoint(
+        point_id=pid, type_id=type_ids[pk], x=x, feasible=feasible, run=run, rollout=rollout
+    )
 
 
 def csv_header(space: dict[str, Any]) -> list[str]:
