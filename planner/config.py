@@ -38,6 +38,7 @@ def _at_least(config: object, **bounds: float) -> None:
 
 
 RESTART_SCHEDULES = ("luby", "geometric")
+STORED_HINTS_PREFER = ("all", "whole", "none")
 
 
 @dataclass(frozen=True)
@@ -278,6 +279,10 @@ class KnowledgeConfig:
     base when the run starts and scored as candidates as other planners' are (`live_hints`),
     each earlier rollout's passed decisions merged into one chain: a binding an earlier task
     found is tried before a fit rates its narrow neighbourhood high; 0: none."""
+    stored_hints_prefer: str = "all"
+    """Which stored hints win among the near-best candidates, as other planners' do: `all`,
+    `whole` (a stored rollout's chain that passed every type of the request and gives every
+    free variable) or `none` (scored, and starting the maximiser's search, only)."""
     live_pending: bool = False
     """With `live_points`, also report this planner's pending suggestions to the service and
     keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
@@ -295,6 +300,11 @@ class KnowledgeConfig:
             live_hints_limit=1,
             stored_hints=0,
         )
+        if self.stored_hints_prefer not in STORED_HINTS_PREFER:
+            raise ConfigError(
+                f"knowledge.stored_hints_prefer is one of {', '.join(STORED_HINTS_PREFER)},"
+                f" not {self.stored_hints_prefer!r}"
+            )
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
         if not 0.0 < self.model_evidence_prior < 1.0:

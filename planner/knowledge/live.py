@@ -177,12 +177,16 @@ class PendingExchange:
 
 class PeerHints:
     """The newest `per_type` feasible points of each type that other planners stored, as
-    candidates (hints) for the MPF maximisation of a request that binds the type."""
+    candidates (hints) for the MPF maximisation of a request that binds the type; without
+    `prefer`, scored only (never preferred among the near-best candidates)."""
 
-    def __init__(self, per_type: int, limit: int, whole_only: bool = False) -> None:
+    def __init__(
+        self, per_type: int, limit: int, whole_only: bool = False, prefer: bool = True
+    ) -> None:
         self.per_type = per_type
         self.limit = limit
         self.whole_only = whole_only
+        self.prefer = prefer
         self._points: dict[str, list[tuple[int, str | None, dict[str, Value]]]] = {}
         self.used = 0  # hints handed to suggestions
 
@@ -233,4 +237,25 @@ class PeerHints:
                 hints.append(hint)
         hints = hints[: self.limit]
         self.used += len(hints)
+        if not self.prefer:
+            return hints, 0
         return hints, min(preferred, len(hints)) if self.whole_only else len(hints)
+
+
+def joined_hints(
+    *sources: PeerHints | None,
+) -> Callable[[list[Constraint], set[str]], tuple[list[dict[str, Value]], int]] | None:
+    """One hint function over several kinds of hints: every source's preferred hints first."""
+    kept = [source for source in sources if source is not None]
+    if not kept:
+        return None
+
+    def for_request(
+        constraints: list[Constraint], free: set[str]
+    ) -> tuple[list[dict[str, Value]], int]:
+        answers = [source.for_request(constraints, free) for source in kept]
+        first = [hint for hints, preferred in answers for hint in hints[:preferred]]
+        rest = [hint for hints, preferred in answers for hint in hints[preferred:]]
+        return [*first, *rest], len(first)
+
+    return for_request

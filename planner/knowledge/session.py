@@ -39,7 +39,7 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
-from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange
+from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange, joined_hints
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -211,16 +211,23 @@ class KnowledgeSession:
             and hasattr(client, "exchange_pending")
             else None
         )
-        per_type = max(
-            self.config.live_hints if self.live is not None else 0, self.config.stored_hints
-        )
         self.hints = (
             PeerHints(
-                per_type,
+                self.config.live_hints,
                 self.config.live_hints_limit,
                 whole_only=self.config.live_hints_whole_only,
             )
-            if self.local is not None and per_type > 0
+            if self.live is not None and self.config.live_hints > 0
+            else None
+        )
+        self.stored = (
+            PeerHints(
+                self.config.stored_hints,
+                self.config.live_hints_limit,
+                whole_only=self.config.stored_hints_prefer == "whole",
+                prefer=self.config.stored_hints_prefer != "none",
+            )
+            if self.local is not None and self.config.stored_hints > 0
             else None
         )
         self._unmatched: dict[Key, FailureGraph] = {}
@@ -248,7 +255,7 @@ class KnowledgeSession:
 
     def _take_stored_hints(self) -> None:
         """Keep the stored feasible points of the types prematch found (`stored_hints`)."""
-        if self.hints is None or self.config.stored_hints <= 0 or not self._types:
+        if self.stored is None or not self._types:
             return
         if not hasattr(self.client, "stored_feasible"):
             return
@@ -263,7 +270,7 @@ class KnowledgeSession:
         finally:
             self.stats.spent("match", time.perf_counter() - started)
         for point in answer.points:
-            self.hints.add(point, by_rollout=True)
+            self.stored.add(point, by_rollout=True)
         self.stats.stored_hints = len(answer.points)
 
     def _graph(self, key: Key, t: int, check: CheckResult, culprit: str | None) -> FailureGraph:
@@ -537,7 +544,7 @@ class KnowledgeSession:
             return None
         fetches = local.fetches
         try:
-            hints = self.hints.for_request if self.hints is not None else None
+            hints = joined_hints(self.hints, self.stored)
             answer = local.suggest(request, self._rollout, self.poster.done, hints)
         except Exception as exc:
             # The service answers this one call (it says what was wrong with a request); the

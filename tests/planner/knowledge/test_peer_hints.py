@@ -124,3 +124,57 @@ def test_a_placement_another_planner_found_is_this_planners_next_suggestion(live
         assert answers[True].x["#pose12"] == pytest.approx(good)
         assert answers[False].x["#pose12"] != pytest.approx(good, abs=1e-3)
         assert sessions[True].stats.peer_hints > 0 and sessions[False].stats.peer_hints == 0
+
+
+def test_a_stored_runs_rollouts_are_chains_of_their_own() -> None:
+    hints = PeerHints(per_type=4, limit=10, whole_only=True)
+    rollout_one = LivePoint(
+        point_id=1, type_id="grasp", x={"#dir": "top"}, feasible=True, run="a", rollout=1
+    )
+    rollout_two = [
+        LivePoint(
+            point_id=3, type_id="grasp", x={"#dir": "front"}, feasible=True, run="a", rollout=2
+        ),
+        LivePoint(
+            point_id=2, type_id="place", x={"#pose": [0.3]}, feasible=True, run="a", rollout=2
+        ),
+    ]
+    for point in [*rollout_two, rollout_one]:  # newest first, as the service answers
+        hints.add(point, by_rollout=True)
+    constraints = [
+        Constraint(type_id="grasp", bind={"#dir": "d"}),
+        Constraint(type_id="place", bind={"#pose": "p"}),
+    ]
+    found, preferred = hints.for_request(constraints, {"d", "p"})
+    # Rollout 2 passed both: its chain leads, not run a's newest values of rollouts 1 and 2.
+    assert found[0] == {"d": "front", "p": [0.3]} and preferred == 1
+    assert {"d": "top", "p": [0.3]} not in found
+
+
+def test_a_placement_an_earlier_run_found_is_a_later_runs_next_suggestion(live_kb) -> None:
+    world = analytic_world("desk")
+    bad, good = _poses(world, feasible=False), _poses(world, feasible=True)
+    with CpkbClient(live_kb.url) as client:
+        a = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        a.prematch()
+        assert not _place(a, bad, rollout=1)
+        assert _place(a, good, rollout=2)
+        a.close()
+
+        answers, sessions = {}, {}
+        for stored in (4, 0):
+            config = KnowledgeConfig(live_points=False, refresh_rollouts=10**6, stored_hints=stored)
+            b = KnowledgeSession(
+                client, live_kb.name, analytic_world("desk"), background=False, config=config
+            )
+            b.prematch()
+            path = {"#dir1": "front"}
+            constraints = b.constraints_at("#pose12", path)
+            assert constraints
+            answers[stored] = b.suggest(b.skeleton.decisions[1], path, [], constraints, seed=0)
+            b.close()
+            assert b.stats.errors == 0
+            sessions[stored] = b
+        assert answers[4].x["#pose12"] == pytest.approx(good)
+        assert answers[0].x["#pose12"] != pytest.approx(good, abs=1e-3)
+        assert sessions[4].stats.stored_hints > 0 and sessions[0].stats.stored_hints == 0
