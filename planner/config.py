@@ -274,6 +274,11 @@ class KnowledgeConfig:
     live_hints_whole_only: bool = False
     """Prefer only a run's whole chain (it passed every constraint of the request); the other
     hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
+    follow_peers: bool = False
+    """With `live_points`, a rollout of another planner of this task that passed every check it
+    posted, once it has come in, is this planner's next rollout: the tree follows its binding
+    from the root, opening the children it lacks (`planner.knowledge.live.PeerChains`). A
+    planner alone gets none."""
     stored_hints: int = 0
     """The newest feasible points of each type met before this run, read from the knowledge
     base when the run starts and scored as candidates as other planners' are (`live_hints`),

@@ -26,7 +26,7 @@ higher id was read is skipped here (it reaches this planner with the next fit).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 
 from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
@@ -259,3 +259,67 @@ def joined_hints(
         return [*first, *rest], len(first)
 
     return for_request
+
+
+RolloutKey = tuple[str | None, int]
+
+
+class PeerChains:
+    """Other planners' rollouts as complete bindings of this task, each handed out once for
+    the tree to follow in one rollout (`knowledge.follow_peers`): a hint only changes a node
+    that widens, and the root of a grown tree widens rarely, so a binding a peer has found
+    would wait there for many rollouts. A rollout with a failed point gives none. Points map
+    onto this task's variables through the binds of its active types; where a type is bound
+    more than once, or a rollout's points disagree on a variable, the rollout gives none."""
+
+    def __init__(self) -> None:
+        self._points: dict[RolloutKey, list[LivePoint]] = {}
+        self._failed: set[RolloutKey] = set()
+        self._fresh: list[RolloutKey] = []
+        self.followed = 0
+
+    def add(self, point: LivePoint) -> None:
+        if point.rollout is None:
+            return
+        key = (point.run, point.rollout)
+        if not point.feasible:
+            self._failed.add(key)
+            self._points.pop(key, None)
+        elif key not in self._failed:
+            self._points.setdefault(key, []).append(point)
+            if key not in self._fresh:
+                self._fresh.append(key)
+
+    def next(
+        self, binds: Mapping[str, Sequence[Mapping[str, str]]], variables: Sequence[str]
+    ) -> dict[str, Value] | None:
+        """The newest rollout come in since the last call that gives every variable (the
+        older ones are let go: the newest is the likeliest to have passed it all)."""
+        fresh, self._fresh = self._fresh, []
+        for key in reversed(fresh):
+            if key in self._failed:
+                continue
+            chain = _chain(self._points.pop(key, []), binds)
+            if chain is not None and all(v in chain for v in variables):
+                self.followed += 1
+                return {v: chain[v] for v in variables}
+        return None
+
+
+def _chain(
+    points: Sequence[LivePoint], binds: Mapping[str, Sequence[Mapping[str, str]]]
+) -> dict[str, Value] | None:
+    """The variables' values the points give through the binds; None where it is ambiguous."""
+    chain: dict[str, Value] = {}
+    for point in points:
+        if len(binds.get(point.type_id, ())) > 1:
+            return None
+        for bind in binds.get(point.type_id, ()):
+            for label, value in point.x.items():
+                var = bind.get(label)
+                if var is None:
+                    continue
+                if var in chain and chain[var] != value:
+                    return None
+                chain[var] = value
+    return chain

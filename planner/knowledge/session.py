@@ -39,7 +39,13 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
-from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange, joined_hints
+from planner.knowledge.live import (
+    LiveFeed,
+    PeerChains,
+    PeerHints,
+    PendingExchange,
+    joined_hints,
+)
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -98,6 +104,7 @@ class KnowledgeStats:
     pending_shared: int = 0  # other planners' pending suggestions local ones were kept from
     peer_hints: int = 0  # other planners' feasible points scored as candidates (`PeerHints`)
     stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
+    peer_chains: int = 0  # other planners' passed rollouts this run followed (`PeerChains`)
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -220,6 +227,7 @@ class KnowledgeSession:
             if self.live is not None and self.config.live_hints > 0
             else None
         )
+        self.chains = PeerChains() if self.live is not None and self.config.follow_peers else None
         self.stored = (
             PeerHints(
                 self.config.stored_hints,
@@ -407,6 +415,8 @@ class KnowledgeSession:
         for point in points:
             if self.hints is not None:
                 self.hints.add(point)
+            if self.chains is not None:
+                self.chains.add(point)
             if point.type_id in self._types:
                 self.local.learn(point.type_id, point.point_id, point.x, point.feasible)
             else:
@@ -457,6 +467,19 @@ class KnowledgeSession:
             self.stats.spent("fit", time.perf_counter() - started)
 
     # -- guiding the search -------------------------------------------------------------------
+
+    def next_chain(self) -> dict[str, Value] | None:
+        """A binding of this task another planner's rollout passed, to follow now (once)."""
+        if self.chains is None:
+            return None
+        binds: dict[str, list[dict[str, str]]] = {}
+        for activation in self._active.values():
+            kept = binds.setdefault(activation.type_id, [])
+            if activation.failure.bind not in kept:
+                kept.append(dict(activation.failure.bind))
+        chain = self.chains.next(binds, [d.var for d in self.skeleton.decisions])
+        self.stats.peer_chains = self.chains.followed
+        return chain
 
     def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
         """The active types that constrain this decision: those whose decision vertexes include

@@ -13,6 +13,8 @@ rated well above its children's outlook, and UCB keeps to the children with the 
 (`SearchConfig.outlook_ratio`; each rule has its switch).
 With `SearchConfig.restart_unit` and a sampler whose knowledge outlives the tree, the tree is
 dropped and grown anew on Luby's (or a doubling) schedule; rollouts count across trees.
+A sampler may hand out a whole binding to follow (`Sampler.chain`, such as one another
+planner passed): that rollout takes its values, opening the children the tree lacks.
 """
 
 from __future__ import annotations
@@ -181,12 +183,17 @@ class PWUCT:
     def _rollout(self) -> dict[str, Value] | None:
         """One descent; the bindings on success, {} on failure, None if it met only closed
         nodes (a categorical subtree turned out exhausted: nothing was run, no rollout spent)."""
+        started = time.perf_counter()
+        chain = self.sampler.chain() or {}
+        self.sample_s += time.perf_counter() - started
         node = self.root
         while True:
             node.visits += 1
             if self.config.hopeless_choices and self.config.hopeless_widening:
                 note_choices(node)
-            if widens(node, self.config.pw_k):
+            if (followed := chain.get(node.var.var)) is not None:
+                child = self._follow(node, followed)
+            elif widens(node, self.config.pw_k):
                 child = self._expand(node)
             elif (untried := self._better_untried(node)) is not None:
                 child = self._expand(node, untried)
@@ -200,6 +207,13 @@ class PWUCT:
                 return self._finish(child)
             assert child.next is not None
             node = child.next
+
+    def _follow(self, node: DecisionNode, value: Value) -> ChildNode:
+        """The child of `value`, opened if the node lacks it (a chain the sampler hands out)."""
+        for child in node.children:
+            if child.value == value:
+                return child
+        return self._expand(node, forced=value)
 
     def _finish(self, child: ChildNode) -> dict[str, Value]:
         node = child.parent
@@ -272,9 +286,13 @@ class PWUCT:
             return 0
         return self.config.inconclusive_retries
 
-    def _expand(self, node: DecisionNode, chosen: Proposal | None = None) -> ChildNode:
+    def _expand(
+        self, node: DecisionNode, chosen: Proposal | None = None, forced: Value | None = None
+    ) -> ChildNode:
         attempt = 0
-        if chosen is None and node.all_tried:
+        if forced is not None:
+            value = forced
+        elif chosen is None and node.all_tried:
             retry = node.retry_choice()
             assert retry is not None, "widens() opens an all-tried node only to retry a choice"
             value, attempt = retry

@@ -60,6 +60,11 @@ class Sampler(Protocol):
         every open child's outlook (`SearchConfig.outlook_ratio`)."""
         ...
 
+    def chain(self) -> dict[str, Value] | None:
+        """A complete binding to follow as the next rollout (one another planner's rollout
+        passed), or None: the tree takes each of its values, opening the children it lacks."""
+        ...
+
     def close(self) -> None:
         """Release whatever the sampler holds (connections, threads)."""
         ...

@@ -84,6 +84,9 @@ class CpBoSampler:
         batch = self._batch(ctx)
         return batch.proposals[0] if batch is not None and batch.proposals else None
 
+    def chain(self) -> dict[str, Value] | None:
+        return self.knowledge.next_chain()
+
     def _batch(self, ctx: SampleContext) -> _Batch | None:
         """This node's batch without the points since tried; asked anew when it is used up,
         older than `batch_max_age` rollouts, or the node's constraints changed (a type became

@@ -84,6 +84,9 @@ class MctsBoSampler:
     def propose_untried(self, ctx: SampleContext) -> None:
         return None
 
+    def chain(self) -> None:
+        return None
+
     def close(self) -> None:
         self._fits.clear()
 

@@ -106,6 +106,9 @@ class OptunaTpeSampler:
     def propose_untried(self, ctx: SampleContext) -> None:
         return None
 
+    def chain(self) -> None:
+        return None
+
     def close(self) -> None:
         self._studies.clear()
         self._pending.clear()

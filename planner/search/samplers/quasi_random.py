@@ -75,6 +75,9 @@ class QuasiRandomSampler:
     def propose_untried(self, ctx: SampleContext) -> None:
         return None
 
+    def chain(self) -> None:
+        return None
+
     def close(self) -> None:
         return None
 
