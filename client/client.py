@@ -28,6 +28,7 @@ from typing import Any
 import httpx
 from pydantic import BaseModel, TypeAdapter
 
+from client.bindings import BindingIn, BindingOut, BindingsPage
 from client.errors import CpkbError, NotFound, ServiceUnavailable, error_for
 from client.models import (
     MAX_POINTS_PER_POST,
@@ -286,6 +287,31 @@ class CpkbClient:
         rollout."""
         body = self._body(StoredFeasibleIn(type_ids=list(type_ids), per_type=per_type))
         return self._call(StoredFeasibleOut, "POST", f"/v1/kbs/{kb}/points/feasible", json=body)
+
+    def add_binding(self, kb: str, binding: BindingIn) -> BindingOut:
+        """Store a binding list found for a task."""
+        return self._call(BindingOut, "POST", f"/v1/kbs/{kb}/bindings", json=self._body(binding))
+
+    def bindings(
+        self,
+        kb: str,
+        *,
+        skeleton: str | None = None,
+        task: str | None = None,
+        after: int | None = None,
+        exclude_run: str | None = None,
+        limit: int | None = None,
+    ) -> BindingsPage:
+        """Found bindings after the cursor `after`, oldest first."""
+        asked = {
+            "skeleton": skeleton,
+            "task": task,
+            "after": after,
+            "exclude_run": exclude_run,
+            "limit": limit,
+        }
+        params = {k: v for k, v in asked.items() if v is not None}
+        return self._call(BindingsPage, "GET", f"/v1/kbs/{kb}/bindings", params=params)
 
     def iter_points(self, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[PointOut]:
         """Every point of a type in insertion order, fetched page by page."""

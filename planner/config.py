@@ -274,11 +274,14 @@ class KnowledgeConfig:
     live_hints_whole_only: bool = False
     """Prefer only a run's whole chain (it passed every constraint of the request); the other
     hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
-    follow_peers: bool = False
-    """With `live_points`, a rollout of another planner of this task that passed every check it
-    posted, once it has come in, is this planner's next rollout: the tree follows its binding
-    from the root, opening the children it lacks (`planner.knowledge.live.PeerChains`). A
-    planner alone gets none."""
+    follow_found: bool = True
+    """Follow, as the next rollout, each binding list another run of this task found and
+    stored in the knowledge base (`planner.knowledge.live.FoundBindings`): those found before
+    this run, read when it starts, and with `live_points` (not in deterministic mode) those
+    found while it runs; this run stores its own. A task is known by its name and plan
+    skeleton (a predecessor's bindings are not followed): a planner alone on a fresh base
+    gets none. On: pack at 8 at once took 0.66 of the rollouts
+    without it (BENCHMARKS.md, issue 23)."""
     stored_hints: int = 0
     """The newest feasible points of each type met before this run, read from the knowledge
     base when the run starts and scored as candidates as other planners' are (`live_hints`),
@@ -375,6 +378,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.size_inputs": False,
             "knowledge.prior_base_rate": False,
             "knowledge.model_evidence": False,
+            "knowledge.follow_found": False,
         },
     ),
 }

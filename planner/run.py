@@ -111,7 +111,7 @@ class PlanResult:
     pending_shared: int = 0  # other planners' pending suggestions this run was kept away from
     peer_hints: int = 0  # other planners' feasible points its suggestions scored as candidates
     stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
-    peer_chains: int = 0  # other planners' passed rollouts it followed from the root
+    found_followed: int = 0  # other runs' found bindings it followed from the root
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
@@ -247,6 +247,8 @@ def _plan_with_knowledge(
             if config.cp_bo.prematch:
                 session.prematch()
             result = _search(request, world, sampler, session, started, progress)
+            if result.bindings is not None:
+                session.add_found(result.bindings, result.rollouts)
         finally:
             sampler.close()
             session.close()
@@ -269,7 +271,7 @@ def _plan_with_knowledge(
             pending_shared=stats.pending_shared,
             peer_hints=stats.peer_hints,
             stored_hints=stats.stored_hints,
-            peer_chains=stats.peer_chains,
+            found_followed=stats.found_followed,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],

@@ -157,3 +157,19 @@ class PendingRow(Base):
     # The planner run that reported it (the pending exchange); None: a suggestion served here.
     owner: Mapped[str | None] = mapped_column(String(128))
     expires_at: Mapped[datetime] = mapped_column(UtcDateTime)
+
+
+class BindingRow(Base):
+    """A binding list a planner found for its task (`client.bindings`)."""
+
+    __tablename__ = "cp_bindings"
+    __table_args__ = (Index("ix_cp_bindings_kb_id_skeleton_id", "kb_id", "skeleton", "id"),)
+
+    id: Mapped[int] = mapped_column(BigId, primary_key=True, autoincrement=True)
+    kb_id: Mapped[int] = mapped_column(ForeignKey("knowledge_bases.id", ondelete="CASCADE"))
+    task: Mapped[str] = mapped_column(String(128))
+    skeleton: Mapped[str] = mapped_column(String(128))
+    run: Mapped[str | None] = mapped_column(String(128))
+    rollout: Mapped[int | None] = mapped_column(BigInteger)
+    bindings: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)

@@ -26,9 +26,10 @@ higher id was read is skipped here (it reaches this planner with the next fit).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
+from client.bindings import BindingsPage
 from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
@@ -261,65 +262,71 @@ def joined_hints(
     return for_request
 
 
-RolloutKey = tuple[str | None, int]
+class FoundBindings:
+    """Binding lists other runs of this task found (`GET /v1/kbs/{kb}/bindings`), each handed
+    out once, the newest first, for the tree to follow as its next rollout
+    (`knowledge.follow_found`): a hint only changes a node that widens, and the root of a grown
+    tree seldom does, so a binding another planner found would otherwise wait there for many
+    rollouts. Those stored before the run are read when it starts; with `live`, the newer ones
+    are polled in the background every `every_rollouts` rollouts."""
 
-
-class PeerChains:
-    """Other planners' rollouts as complete bindings of this task, each handed out once for
-    the tree to follow in one rollout (`knowledge.follow_peers`): a hint only changes a node
-    that widens, and the root of a grown tree widens rarely, so a binding a peer has found
-    would wait there for many rollouts. A rollout with a failed point gives none. Points map
-    onto this task's variables through the binds of its active types; where a type is bound
-    more than once, or a rollout's points disagree on a variable, the rollout gives none."""
-
-    def __init__(self) -> None:
-        self._points: dict[RolloutKey, list[LivePoint]] = {}
-        self._failed: set[RolloutKey] = set()
-        self._fresh: list[RolloutKey] = []
+    def __init__(
+        self,
+        poll: Callable[[int | None], BindingsPage],
+        *,
+        live: bool,
+        every_rollouts: int = 1,
+        background: bool = True,
+    ) -> None:
+        self._poll = poll
+        self.live = live
+        self.every_rollouts = every_rollouts
+        self._cursor: int | None = None
+        self._polled_at = 0
+        self._executor = (
+            ThreadPoolExecutor(1, thread_name_prefix="cpkb-found") if live and background else None
+        )
+        self._in_flight: Future[BindingsPage] | None = None
+        self._waiting: list[dict[str, Value]] = []
         self.followed = 0
 
-    def add(self, point: LivePoint) -> None:
-        if point.rollout is None:
+    def start(self) -> None:
+        """Read the bindings stored so far (this call waits for the answer)."""
+        self._take(self._poll(None))
+
+    def tick(self, rollout: int) -> None:
+        """Take in a finished poll; start the next one if it is due."""
+        if self._cursor is None:
+            self.start()
+        if not self.live:
             return
-        key = (point.run, point.rollout)
-        if not point.feasible:
-            self._failed.add(key)
-            self._points.pop(key, None)
-        elif key not in self._failed:
-            self._points.setdefault(key, []).append(point)
-            if key not in self._fresh:
-                self._fresh.append(key)
+        poll = self._in_flight
+        if poll is not None:
+            if not poll.done():
+                return
+            self._in_flight = None
+            self._take(poll.result())
+        if rollout - self._polled_at < self.every_rollouts:
+            return
+        self._polled_at = rollout
+        if self._executor is None:
+            self._take(self._poll(self._cursor))
+        else:
+            self._in_flight = self._executor.submit(self._poll, self._cursor)
 
-    def next(
-        self, binds: Mapping[str, Sequence[Mapping[str, str]]], variables: Sequence[str]
-    ) -> dict[str, Value] | None:
-        """The newest rollout come in since the last call that gives every variable (the
-        older ones are let go: the newest is the likeliest to have passed it all)."""
-        fresh, self._fresh = self._fresh, []
-        for key in reversed(fresh):
-            if key in self._failed:
-                continue
-            chain = _chain(self._points.pop(key, []), binds)
-            if chain is not None and all(v in chain for v in variables):
-                self.followed += 1
-                return {v: chain[v] for v in variables}
-        return None
-
-
-def _chain(
-    points: Sequence[LivePoint], binds: Mapping[str, Sequence[Mapping[str, str]]]
-) -> dict[str, Value] | None:
-    """The variables' values the points give through the binds; None where it is ambiguous."""
-    chain: dict[str, Value] = {}
-    for point in points:
-        if len(binds.get(point.type_id, ())) > 1:
+    def next(self) -> dict[str, Value] | None:
+        """The newest binding not handed out yet, or None."""
+        if not self._waiting:
             return None
-        for bind in binds.get(point.type_id, ()):
-            for label, value in point.x.items():
-                var = bind.get(label)
-                if var is None:
-                    continue
-                if var in chain and chain[var] != value:
-                    return None
-                chain[var] = value
-    return chain
+        self.followed += 1
+        return self._waiting.pop()
+
+    def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            self._executor = None
+        self._in_flight = None
+
+    def _take(self, page: BindingsPage) -> None:
+        self._cursor = page.cursor if self._cursor is None else max(self._cursor, page.cursor)
+        self._waiting += [found.bindings for found in page.bindings]

@@ -15,6 +15,7 @@ the search, and their time is `kb_s`.
 
 from __future__ import annotations
 
+import hashlib
 import time
 import uuid
 from collections.abc import Sequence
@@ -22,8 +23,10 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Protocol
 
+from client.bindings import BindingIn
 from client.errors import BadRequest
 from client.models import (
+    MAX_LABEL,
     MAX_PENDING_REPORT,
     MAX_WATCHED_TYPES,
     Constraint,
@@ -40,8 +43,8 @@ from client.models import (
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
 from planner.knowledge.live import (
+    FoundBindings,
     LiveFeed,
-    PeerChains,
     PeerHints,
     PendingExchange,
     joined_hints,
@@ -104,7 +107,7 @@ class KnowledgeStats:
     pending_shared: int = 0  # other planners' pending suggestions local ones were kept from
     peer_hints: int = 0  # other planners' feasible points scored as candidates (`PeerHints`)
     stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
-    peer_chains: int = 0  # other planners' passed rollouts this run followed (`PeerChains`)
+    found_followed: int = 0  # other runs' found bindings this run followed (`FoundBindings`)
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:
@@ -161,6 +164,8 @@ class KnowledgeSession:
         self.kb = kb
         self.world = world
         self.skeleton = world.skeleton
+        # Found bindings are shared between runs of one task whose decisions mean the same.
+        self.skeleton_digest = hashlib.sha256(repr(self.skeleton).encode()).hexdigest()
         self._domains = {d.var: d.domain for d in self.skeleton.decisions}
         self.run = run or uuid.uuid4().hex[:16]
         self.worker = worker
@@ -227,7 +232,22 @@ class KnowledgeSession:
             if self.live is not None and self.config.live_hints > 0
             else None
         )
-        self.chains = PeerChains() if self.live is not None and self.config.follow_peers else None
+        self.found = (
+            FoundBindings(
+                lambda after: client.bindings(
+                    kb,
+                    skeleton=self.skeleton_digest,
+                    task=self.world.name[:MAX_LABEL],
+                    after=after,
+                    exclude_run=self.run,
+                ),
+                live=live,
+                every_rollouts=self.config.live_every_rollouts,
+                background=background,
+            )
+            if self.config.follow_found and hasattr(client, "bindings")
+            else None
+        )
         self.stored = (
             PeerHints(
                 self.config.stored_hints,
@@ -260,6 +280,12 @@ class KnowledgeSession:
         self._take_stored_hints()
         if self.live is not None:
             self.live.start()  # what is stored by now is in the models this run fetches
+        if self.found is not None:
+            try:
+                self.found.start()
+            except Exception as exc:  # a knowledge-base outage must not stop the search
+                self.stats.event(f"reading found bindings failed: {exc}")
+                self.found = None
 
     def _take_stored_hints(self) -> None:
         """Keep the stored feasible points of the types prematch found (`stored_hints`)."""
@@ -393,6 +419,11 @@ class KnowledgeSession:
                 if key in self._active:
                     self.local.note(self._active[key].type_id, x, feasible, batch)
         self._take_live(rollout)
+        if self.found is not None:
+            try:
+                self.found.tick(rollout)
+            except Exception as exc:  # a knowledge-base outage must not stop the search
+                self.stats.event(f"reading found bindings failed: {exc}")
         if self.config.deterministic:
             self._wait_for_fits(
                 {self._active[k].type_id for k, *_ in self._pending if k in self._active}
@@ -415,8 +446,6 @@ class KnowledgeSession:
         for point in points:
             if self.hints is not None:
                 self.hints.add(point)
-            if self.chains is not None:
-                self.chains.add(point)
             if point.type_id in self._types:
                 self.local.learn(point.type_id, point.point_id, point.x, point.feasible)
             else:
@@ -469,17 +498,31 @@ class KnowledgeSession:
     # -- guiding the search -------------------------------------------------------------------
 
     def next_chain(self) -> dict[str, Value] | None:
-        """A binding of this task another planner's rollout passed, to follow now (once)."""
-        if self.chains is None:
+        """A binding list another run of this task found, to follow now (each once)."""
+        if self.found is None:
             return None
-        binds: dict[str, list[dict[str, str]]] = {}
-        for activation in self._active.values():
-            kept = binds.setdefault(activation.type_id, [])
-            if activation.failure.bind not in kept:
-                kept.append(dict(activation.failure.bind))
-        chain = self.chains.next(binds, [d.var for d in self.skeleton.decisions])
-        self.stats.peer_chains = self.chains.followed
+        chain = self.found.next()
+        self.stats.found_followed = self.found.followed
         return chain
+
+    def add_found(self, bindings: dict[str, Value], rollout: int) -> None:
+        """Store the binding list this run found, for the other runs of its task."""
+        if self.found is None:
+            return
+        binding = BindingIn(
+            task=self.world.name[:MAX_LABEL],
+            skeleton=self.skeleton_digest,
+            run=self.run,
+            rollout=rollout,
+            bindings=bindings,
+        )
+        started = time.perf_counter()
+        try:
+            self.client.add_binding(self.kb, binding)
+        except Exception as exc:  # the run has its binding; sharing it is a bonus
+            self.stats.event(f"storing the found binding failed: {exc}")
+        finally:
+            self.stats.spent("post", time.perf_counter() - started)
 
     def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
         """The active types that constrain this decision: those whose decision vertexes include
@@ -588,6 +631,8 @@ class KnowledgeSession:
         self.poster.close()
         if self.live is not None:
             self.live.close()
+        if self.found is not None:
+            self.found.close()
         if self.shared is not None:
             try:
                 self.shared.close()

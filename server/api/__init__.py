@@ -11,7 +11,7 @@ from collections.abc import Callable
 from fastapi import APIRouter, FastAPI
 
 from server import dashboard
-from server.api import health, kbs, points, types
+from server.api import bindings, health, kbs, points, types
 from server.api import surrogates as surrogate_routes
 from server.observability import install_observability
 from server.surrogates import install as install_surrogates
@@ -21,6 +21,7 @@ ROUTERS: list[APIRouter] = [
     kbs.router,
     types.router,
     points.router,
+    bindings.router,
     surrogate_routes.router,
     dashboard.router,
 ]

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from client import models
+from client import bindings, models
 from server.api.responses import ErrorOut, ValidationErrorOut
 from tests.service_support import make_point
 
@@ -22,6 +22,7 @@ REQUEST_MODELS = (
     models.MatchIn,
     models.PointsSinceIn,
     models.StoredFeasibleIn,
+    bindings.BindingIn,
     models.PredictIn,
     models.SuggestIn,
     models.Constraint,
@@ -35,6 +36,7 @@ EXAMPLED = (
     "MatchIn",
     "PointsSinceIn",
     "StoredFeasibleIn",
+    "BindingIn",
     "PredictIn",
     "SuggestIn",
     "ModelsIn",
@@ -137,7 +139,8 @@ def test_request_examples_are_valid_requests(spec: dict[str, Any], app_client: A
         examples = schemas[name].get("examples")
         assert examples, name
         for example in examples:
-            getattr(models, name).model_validate(example)
+            model = getattr(models, name, None) or getattr(bindings, name)
+            model.model_validate(example)
     # The points example is one a service stores, and the knowledge base one it creates.
     example = schemas["PointsIn"]["examples"][0]
     assert app_client.post("/v1/kbs/default/points", json=example).status_code == 201
