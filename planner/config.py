@@ -276,7 +276,7 @@ class KnowledgeConfig:
     hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
     follow_found: bool = True
     """Follow, as the next rollout, each binding list another run of this task found and
-    stored in the knowledge base (`planner.knowledge.live.FoundBindings`): those found before
+    stored in the knowledge base (`planner.knowledge.found.FoundBindings`): those found before
     this run, read when it starts, and with `live_points` (not in deterministic mode) those
     found while it runs; this run stores its own. A task is known by its name and plan
     skeleton (a predecessor's bindings are not followed): a planner alone on a fresh base

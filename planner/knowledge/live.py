@@ -29,7 +29,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from client.bindings import BindingsPage
 from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
@@ -260,73 +259,3 @@ def joined_hints(
         return [*first, *rest], len(first)
 
     return for_request
-
-
-class FoundBindings:
-    """Binding lists other runs of this task found (`GET /v1/kbs/{kb}/bindings`), each handed
-    out once, the newest first, for the tree to follow as its next rollout
-    (`knowledge.follow_found`): a hint only changes a node that widens, and the root of a grown
-    tree seldom does, so a binding another planner found would otherwise wait there for many
-    rollouts. Those stored before the run are read when it starts; with `live`, the newer ones
-    are polled in the background every `every_rollouts` rollouts."""
-
-    def __init__(
-        self,
-        poll: Callable[[int | None], BindingsPage],
-        *,
-        live: bool,
-        every_rollouts: int = 1,
-        background: bool = True,
-    ) -> None:
-        self._poll = poll
-        self.live = live
-        self.every_rollouts = every_rollouts
-        self._cursor: int | None = None
-        self._polled_at = 0
-        self._executor = (
-            ThreadPoolExecutor(1, thread_name_prefix="cpkb-found") if live and background else None
-        )
-        self._in_flight: Future[BindingsPage] | None = None
-        self._waiting: list[dict[str, Value]] = []
-        self.followed = 0
-
-    def start(self) -> None:
-        """Read the bindings stored so far (this call waits for the answer)."""
-        self._take(self._poll(None))
-
-    def tick(self, rollout: int) -> None:
-        """Take in a finished poll; start the next one if it is due."""
-        if self._cursor is None:
-            self.start()
-        if not self.live:
-            return
-        poll = self._in_flight
-        if poll is not None:
-            if not poll.done():
-                return
-            self._in_flight = None
-            self._take(poll.result())
-        if rollout - self._polled_at < self.every_rollouts:
-            return
-        self._polled_at = rollout
-        if self._executor is None:
-            self._take(self._poll(self._cursor))
-        else:
-            self._in_flight = self._executor.submit(self._poll, self._cursor)
-
-    def next(self) -> dict[str, Value] | None:
-        """The newest binding not handed out yet, or None."""
-        if not self._waiting:
-            return None
-        self.followed += 1
-        return self._waiting.pop()
-
-    def close(self) -> None:
-        if self._executor is not None:
-            self._executor.shutdown(wait=True, cancel_futures=True)
-            self._executor = None
-        self._in_flight = None
-
-    def _take(self, page: BindingsPage) -> None:
-        self._cursor = page.cursor if self._cursor is None else max(self._cursor, page.cursor)
-        self._waiting += [found.bindings for found in page.bindings]

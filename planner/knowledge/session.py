@@ -15,7 +15,6 @@ the search, and their time is `kb_s`.
 
 from __future__ import annotations
 
-import hashlib
 import time
 import uuid
 from collections.abc import Sequence
@@ -23,10 +22,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Protocol
 
-from client.bindings import BindingIn
 from client.errors import BadRequest
 from client.models import (
-    MAX_LABEL,
     MAX_PENDING_REPORT,
     MAX_WATCHED_TYPES,
     Constraint,
@@ -42,13 +39,8 @@ from client.models import (
 )
 from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
-from planner.knowledge.live import (
-    FoundBindings,
-    LiveFeed,
-    PeerHints,
-    PendingExchange,
-    joined_hints,
-)
+from planner.knowledge.found import FoundBindings
+from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange, joined_hints
 from planner.knowledge.local import LocalSurrogates
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
@@ -164,8 +156,6 @@ class KnowledgeSession:
         self.kb = kb
         self.world = world
         self.skeleton = world.skeleton
-        # Found bindings are shared between runs of one task whose decisions mean the same.
-        self.skeleton_digest = hashlib.sha256(repr(self.skeleton).encode()).hexdigest()
         self._domains = {d.var: d.domain for d in self.skeleton.decisions}
         self.run = run or uuid.uuid4().hex[:16]
         self.worker = worker
@@ -234,16 +224,15 @@ class KnowledgeSession:
         )
         self.found = (
             FoundBindings(
-                lambda after: client.bindings(
-                    kb,
-                    skeleton=self.skeleton_digest,
-                    task=self.world.name[:MAX_LABEL],
-                    after=after,
-                    exclude_run=self.run,
-                ),
+                client,
+                kb,
+                task=world.name,
+                skeleton=self.skeleton,
+                run=self.run,
                 live=live,
                 every_rollouts=self.config.live_every_rollouts,
                 background=background,
+                on_error=self.stats.event,
             )
             if self.config.follow_found and hasattr(client, "bindings")
             else None
@@ -281,11 +270,7 @@ class KnowledgeSession:
         if self.live is not None:
             self.live.start()  # what is stored by now is in the models this run fetches
         if self.found is not None:
-            try:
-                self.found.start()
-            except Exception as exc:  # a knowledge-base outage must not stop the search
-                self.stats.event(f"reading found bindings failed: {exc}")
-                self.found = None
+            self.found.start()
 
     def _take_stored_hints(self) -> None:
         """Keep the stored feasible points of the types prematch found (`stored_hints`)."""
@@ -420,10 +405,7 @@ class KnowledgeSession:
                     self.local.note(self._active[key].type_id, x, feasible, batch)
         self._take_live(rollout)
         if self.found is not None:
-            try:
-                self.found.tick(rollout)
-            except Exception as exc:  # a knowledge-base outage must not stop the search
-                self.stats.event(f"reading found bindings failed: {exc}")
+            self.found.tick(rollout)
         if self.config.deterministic:
             self._wait_for_fits(
                 {self._active[k].type_id for k, *_ in self._pending if k in self._active}
@@ -509,20 +491,9 @@ class KnowledgeSession:
         """Store the binding list this run found, for the other runs of its task."""
         if self.found is None:
             return
-        binding = BindingIn(
-            task=self.world.name[:MAX_LABEL],
-            skeleton=self.skeleton_digest,
-            run=self.run,
-            rollout=rollout,
-            bindings=bindings,
-        )
         started = time.perf_counter()
-        try:
-            self.client.add_binding(self.kb, binding)
-        except Exception as exc:  # the run has its binding; sharing it is a bonus
-            self.stats.event(f"storing the found binding failed: {exc}")
-        finally:
-            self.stats.spent("post", time.perf_counter() - started)
+        self.found.store(bindings, rollout)
+        self.stats.spent("post", time.perf_counter() - started)
 
     def constraints_at(self, var: str, path: dict[str, Value]) -> list[Constraint]:
         """The active types that constrain this decision: those whose decision vertexes include

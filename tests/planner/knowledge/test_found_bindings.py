@@ -7,6 +7,7 @@ from wait_support import wait_until
 from client import CpkbClient
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
+from planner.knowledge.found import FoundBindings
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.cp_bo import CpBoSampler
@@ -61,3 +62,24 @@ def test_a_task_run_again_follows_the_binding_found_before(live_kb) -> None:
             session.close()
             rollouts.append(result.rollouts)
     assert rollouts[0] > 1 and rollouts[1] == 1, rollouts
+
+
+def test_an_unreachable_service_is_an_event_not_an_error_of_the_search() -> None:
+    events: list[str] = []
+    with CpkbClient("http://127.0.0.1:9", retries=0, timeout=2.0) as client:
+        found = FoundBindings(
+            client,
+            "default",
+            task="desk",
+            skeleton=analytic_world("desk").skeleton,
+            run="r",
+            live=True,
+            background=False,
+            on_error=events.append,
+        )
+        found.start()
+        found.tick(1)
+        found.store(FOUND, rollout=1)
+        found.close()
+    assert found.next() is None
+    assert len(events) == 3 and all(e.startswith("found bindings:") for e in events)
