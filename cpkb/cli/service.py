@@ -78,6 +78,21 @@ def register(subparsers: Any) -> None:
     _client_options(types)
     types.set_defaults(handler=_types)
 
+    found = subparsers.add_parser(
+        "bindings",
+        help="the binding lists planners found, as a table",
+        description="One row per binding list a planner stored when it solved its task, on a "
+        "running service: the runs of the same task follow each as their next rollout "
+        "(knowledge.follow_found). The oldest first.",
+    )
+    found.add_argument("--kb", default="default", help="knowledge base (default: default)")
+    found.add_argument("--task", help="only this task's")
+    found.add_argument(
+        "--limit", type=int, default=100, help="at most this many, 1-100 (default: 100)"
+    )
+    _client_options(found)
+    found.set_defaults(handler=_bindings)
+
 
 def _client_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -314,6 +329,30 @@ def _types(args: argparse.Namespace) -> int:
         table.add_row(ids[t.type_id], *cells)
     console.print(table)
     return 0
+
+
+def _bindings(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    if not 1 <= args.limit <= 100:
+        raise CliError(f"--limit must be between 1 and 100, not {args.limit}")
+    page = _run(args, lambda c: c.bindings(args.kb, task=args.task, limit=args.limit))
+    console = _console()
+    if not page.bindings:
+        console.print(f"knowledge base {args.kb!r} holds no found bindings yet")
+        return 0
+    table = Table("id", "task", "run", "rollout", "bindings", "found", box=None)
+    for found in page.bindings:
+        when = found.created_at.strftime("%Y-%m-%d %H:%M:%S") if found.created_at else ""
+        values = "  ".join(f"{var}={_compact(value)}" for var, value in found.bindings.items())
+        rollout = "" if found.rollout is None else str(found.rollout)
+        table.add_row(str(found.binding_id), found.task, found.run or "", rollout, values, when)
+    console.print(table)
+    return 0
+
+
+def _compact(value: Any) -> str:
+    return value if isinstance(value, str) else "[" + ", ".join(f"{v:.3g}" for v in value) + "]"
 
 
 WIDE = 160  # columns a terminal needs for whole type ids beside the rest
