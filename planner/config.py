@@ -280,8 +280,8 @@ class KnowledgeConfig:
     this run, read when it starts, and with `live_points` (not in deterministic mode) those
     found while it runs; this run stores its own. A task is known by its name and plan
     skeleton (a predecessor's bindings are not followed): a planner alone on a fresh base
-    gets none. On: pack at 8 at once took 0.66 of the rollouts
-    without it (BENCHMARKS.md, issue 23)."""
+    gets none. On: planners of one task at once took fewer rollouts with it, and a planner
+    alone is unchanged (BENCHMARKS.md, issue 23)."""
     stored_hints: int = 0
     """The newest feasible points of each type met before this run, read from the knowledge
     base when the run starts and scored as candidates as other planners' are (`live_hints`),

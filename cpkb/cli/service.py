@@ -88,7 +88,7 @@ def register(subparsers: Any) -> None:
     found.add_argument("--kb", default="default", help="knowledge base (default: default)")
     found.add_argument("--task", help="only this task's")
     found.add_argument(
-        "--limit", type=int, default=100, help="at most this many, 1-100 (default: 100)"
+        "--limit", type=int, help="at most this many (default and most: one page's worth)"
     )
     _client_options(found)
     found.set_defaults(handler=_bindings)
@@ -334,9 +334,12 @@ def _types(args: argparse.Namespace) -> int:
 def _bindings(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    if not 1 <= args.limit <= 100:
-        raise CliError(f"--limit must be between 1 and 100, not {args.limit}")
-    page = _run(args, lambda c: c.bindings(args.kb, task=args.task, limit=args.limit))
+    from client.bindings import MAX_BINDINGS_PAGE
+
+    limit = MAX_BINDINGS_PAGE if args.limit is None else args.limit
+    if not 1 <= limit <= MAX_BINDINGS_PAGE:
+        raise CliError(f"--limit must be between 1 and {MAX_BINDINGS_PAGE}, not {limit}")
+    page = _run(args, lambda c: c.bindings(args.kb, task=args.task, limit=limit))
     console = _console()
     if not page.bindings:
         console.print(f"knowledge base {args.kb!r} holds no found bindings yet")
