@@ -148,9 +148,19 @@ class CpBoConfig:
     prematch: bool = True
     """Before the search, activate the known types of every graph the task could produce; the
     paper activates a type when its failure is met."""
+    explore_below: float = 0.0
+    """A continuous decision whose best proposal the knowledge base rates below this takes a
+    space-filling value instead, as quasi-random would: a model that expects every value to
+    fail knows no region that succeeds, and the argmax of such a surface keeps the search where
+    a predecessor's or a few failures' lessons left it, where quasi-random would spread.
+    0: never (the paper)."""
+    random_every: int = 0
+    """One in this many new children of a continuous decision is space-filling instead of the
+    proposal (SMAC's interleaved random configurations): what a misleading model can cost is
+    bounded, at the price of that share of guided values. 0: never (the paper)."""
 
     def __post_init__(self) -> None:
-        _at_least(self, batch=1, batch_max_age=0)
+        _at_least(self, batch=1, batch_max_age=0, explore_below=0.0, random_every=0)
 
 
 @dataclass(frozen=True)

@@ -112,6 +112,7 @@ class PlanResult:
     peer_hints: int = 0  # other planners' feasible points its suggestions scored as candidates
     stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
     found_followed: int = 0  # other runs' found bindings it followed from the root
+    explored: int = 0  # continuous values cp-bo took space-filling (`cp_bo.explore_below`)
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     kb: str | None = None
     run: str | None = None
@@ -272,6 +273,7 @@ def _plan_with_knowledge(
             peer_hints=stats.peer_hints,
             stored_hints=stats.stored_hints,
             found_followed=stats.found_followed,
+            explored=stats.explored,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],

@@ -100,6 +100,7 @@ class KnowledgeStats:
     peer_hints: int = 0  # other planners' feasible points scored as candidates (`PeerHints`)
     stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
     found_followed: int = 0  # other runs' found bindings this run followed (`FoundBindings`)
+    explored: int = 0  # continuous values cp-bo took space-filling instead of its proposal
     events: dict[str, int] = field(default_factory=dict)
 
     def spent(self, part: str, seconds: float) -> None:

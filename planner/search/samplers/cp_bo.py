@@ -73,10 +73,23 @@ class CpBoSampler:
                 return left[0]
         batch = self._batch(ctx)
         if batch is not None and batch.proposals:
+            if self._explores(ctx, batch.proposals[0]):
+                self.knowledge.stats.explored += 1
+                return space_filling(ctx, self.fallback.candidates_per_dim)
             self.guided += 1
             return batch.proposals.pop(0)
         self.unguided += 1
         return space_filling(ctx, self.fallback.candidates_per_dim)
+
+    def _explores(self, ctx: SampleContext, best: Proposal) -> bool:
+        """Whether a continuous node takes a space-filling value instead of `best`
+        (`CpBoConfig.explore_below`, `CpBoConfig.random_every`); the batch keeps `best`."""
+        if isinstance(ctx.var.domain, CategoricalDomain):
+            return False
+        every = self.config.random_every
+        return best.p_feasible < self.config.explore_below or (
+            every > 0 and (len(ctx.siblings) + 1) % every == 0
+        )
 
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
         """The next point of this node's batch, left in it: the best untried value the

@@ -319,3 +319,85 @@ def test_deterministic_runs_of_one_seed_on_fresh_knowledge_bases_agree(kb_servic
         ]
 
     assert chain() == chain()
+
+
+class _RatedKnowledge(_ScriptedKnowledge):
+    """Untried placements along the diagonal, each answer rated `mpf`."""
+
+    def __init__(self, skeleton, mpf: float) -> None:
+        super().__init__(skeleton)
+        self.mpf = mpf
+
+    def suggest(self, var, path, siblings, constraints, seed, *, n=1):
+        from client.models import SuggestedPoint, SuggestOut
+
+        answer = super().suggest(var, path, siblings, constraints, seed, n=n)
+        shift = 0.01 * len(siblings) if not hasattr(var.domain, "choices") else 0.0
+        points = [
+            SuggestedPoint(
+                x={k: [x + shift for x in v] if isinstance(v, list) else v for k, v in p.x.items()},
+                mpf=self.mpf,
+                p_feasible={},
+            )
+            for p in answer.batch
+        ]
+        return SuggestOut(x=points[0].x, mpf=self.mpf, p_feasible={}, batch=points)
+
+
+def _placements(sampler, pose, n: int) -> list:
+    import numpy as np
+
+    from planner.search.samplers.base import SampleContext
+
+    rng = np.random.default_rng(0)
+    values: list = []
+    for rollout in range(1, n + 1):
+        siblings = tuple(v.value if hasattr(v, "value") else v for v in values)
+        values.append(sampler.propose(SampleContext(pose, {}, siblings, (), (), 1, rollout, rng)))
+    return values
+
+
+@pytest.mark.parametrize(("mpf", "guided"), [(0.3, False), (0.7, True)])
+def test_a_placement_rated_below_explore_below_is_space_filling(mpf, guided):
+    """A proposal the knowledge base rates below `explore_below` gives way to a space-filling
+    value (counted in the run's `explored`); one rated above it is taken."""
+    from client.models import Constraint
+    from planner.config import CpBoConfig
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import Proposal
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    pose = analytic_world("desk").skeleton.decisions[1]
+    knowledge = _RatedKnowledge(analytic_world("desk").skeleton, mpf)
+    knowledge.active = [Constraint(type_id="shelf", bind={"#pose": pose.var})]
+    sampler = CpBoSampler(knowledge, CpBoConfig(explore_below=0.5))  # type: ignore[arg-type]
+    values = _placements(sampler, pose, 3)
+    assert all(isinstance(v, Proposal) for v in values) is guided
+    assert knowledge.stats.explored == (0 if guided else 3)
+    if not guided:
+        assert all(len(v) == 3 and all(0 <= x <= 1 for x in v) for v in values)
+        assert len({tuple(v) for v in values}) == 3
+
+
+def test_random_every_interleaves_space_filling_placements_but_never_grasps():
+    """With `random_every=3` the third and sixth children of a placement are space-filling;
+    a grasp is always the knowledge base's choice."""
+    import numpy as np
+
+    from client.models import Constraint
+    from planner.config import CpBoConfig
+    from planner.search.analytic import analytic_world
+    from planner.search.samplers.base import Proposal, SampleContext
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    grasp, pose = analytic_world("desk").skeleton.decisions
+    knowledge = _RatedKnowledge(analytic_world("desk").skeleton, 0.9)
+    knowledge.active = [Constraint(type_id="shelf", bind={"#dir": grasp.var, "#pose": pose.var})]
+    sampler = CpBoSampler(knowledge, CpBoConfig(random_every=3))  # type: ignore[arg-type]
+    values = _placements(sampler, pose, 6)
+    assert [isinstance(v, Proposal) for v in values] == [True, True, False, True, True, False]
+    assert knowledge.stats.explored == 2
+    rng = np.random.default_rng(0)
+    for tried in ((), ("front",), ("front", "top")):
+        chosen = sampler.propose(SampleContext(grasp, {}, tried, (), (), 0, 1, rng))
+        assert isinstance(chosen, Proposal) or len(grasp.domain.choices) - len(tried) == 1
