@@ -73,9 +73,12 @@ class CpBoSampler:
                 return left[0]
         batch = self._batch(ctx)
         if batch is not None and batch.proposals:
-            if self._explores(ctx, batch.proposals[0]):
+            best = batch.proposals[0]
+            if self._explores(ctx, best):
                 self.knowledge.stats.explored += 1
-                return space_filling(ctx, self.fallback.candidates_per_dim)
+                # The node's outlook stays the knowledge base's best, whichever value is taken.
+                value = space_filling(ctx, self.fallback.candidates_per_dim)
+                return Proposal(value, best.p_feasible)
             self.guided += 1
             return batch.proposals.pop(0)
         self.unguided += 1
