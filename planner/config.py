@@ -102,6 +102,11 @@ class SearchConfig:
     """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
     units), so a task that needs one long tree loses at most the rollouts spent before it, at
     the cost of cutting a stuck tree later."""
+    restart_redraws: bool = False
+    """A restarted tree draws the randomised checks afresh (IK restarts, the motion planner's
+    seed), as a further attempt does: a pick that passed in an arm configuration from which no
+    placement's motion succeeds is drawn again by the next tree, where one tree keeps it for
+    ever (a passed choice is never retried). Off: every tree draws as the first did."""
 
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or

@@ -12,7 +12,8 @@ With a sampler that rates its proposals (`Proposal`), a node also opens an untri
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`SearchConfig.outlook_ratio`; each rule has its switch).
 With `SearchConfig.restart_unit` and a sampler whose knowledge outlives the tree, the tree is
-dropped and grown anew on Luby's (or a doubling) schedule; rollouts count across trees.
+dropped and grown anew on Luby's (or a doubling) schedule; rollouts count across trees (with
+`SearchConfig.restart_redraws` each tree draws the world's randomised checks afresh).
 A sampler may hand out a whole binding to follow (`Sampler.chain`, such as one another
 planner passed): that rollout takes its values, opening the children the tree lacks.
 """
@@ -277,6 +278,13 @@ class PWUCT:
             return None
         return proposal
 
+    def _draw(self, attempt: int) -> int:
+        """The world's attempt number of a transition: the choice's own attempt, and with
+        `SearchConfig.restart_redraws` the tree's restart count, so that each tree draws anew."""
+        if not self.config.restart_redraws:
+            return attempt
+        return attempt + self.restarts * (self.config.inconclusive_retries + 1)
+
     def _retries(self, index: int, parent: DecisionNode | None) -> int:
         """Further attempts at a choice of decision `index` that failed inconclusively: only
         where every decision from the root to it is categorical (see `planner.search.tree`)."""
@@ -309,7 +317,9 @@ class PWUCT:
                 raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}
         started = time.perf_counter()
-        outcome = self.world.transition(node.index, bindings, node.state, attempt=attempt)
+        outcome = self.world.transition(
+            node.index, bindings, node.state, attempt=self._draw(attempt)
+        )
         self.sim_s += time.perf_counter() - started
         if self.observer is not None:
             self.observer.on_transition(node.index, bindings, outcome, self.rollout + 1)

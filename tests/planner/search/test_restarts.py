@@ -117,3 +117,34 @@ def test_a_cp_bo_run_restarts_by_default_and_records_it(live_kb):
     assert paper.config["search"]["restart_unit"] == 0
     plain = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=200)
     assert not any("restarted" in note for note in plain.notes)
+
+
+class Attempts(Unplaceable):
+    """The unplaceable desk, noting the attempt number of every pick (the first transition)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.picks: list[int] = []
+
+    def transition(
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
+    ) -> TransitionOutcome:
+        if index == 0:
+            self.picks.append(attempt)
+        return super().transition(index, bindings, state, attempt=attempt)
+
+
+@pytest.mark.parametrize("redraws", [False, True])
+def test_a_restarted_tree_draws_its_checks_afresh_only_with_restart_redraws(redraws):
+    """With `restart_redraws` the picks of the k-th tree are attempts of their own, past every
+    retry of the trees before (never a draw an earlier tree made); without it every tree's
+    first pick of a grasp is attempt 0, the first tree's draw again."""
+    world = Attempts()
+    config = SearchConfig(restart_unit=5, restart_redraws=redraws, inconclusive_retries=2)
+    result = PWUCT(world, FirstChoices(), seed=3, config=config).run(40)
+    assert result.restarts >= 3 and not result.solved
+    firsts = [a for a in world.picks if a % 3 == 0]
+    if redraws:
+        assert sorted(set(firsts)) == [3 * k for k in range(result.restarts + 1)]
+    else:
+        assert set(world.picks) == {0}
