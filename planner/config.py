@@ -240,6 +240,12 @@ class KnowledgeConfig:
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
     same name (`planner.failures.graphs`); the paper labels by name."""
+    movable_names: bool = True
+    """A movable body's vertex in a failure graph is labelled with its name, as the paper's are;
+    off: `movable`, so that the failures of one box placed beside another are one type whichever
+    boxes they are (pack's second box beside its first, its third beside its second, and a
+    predecessor's boxes of other names), and what one pair taught, the others use
+    (`planner.failures.graphs`). Not with `size_inputs`."""
     size_inputs: bool = False
     """A movable body's size `(x, y, z)` is an input of the models of the types it appears in
     (fixed at suggestion time, like earlier decisions), instead of being ignored (a name) or
@@ -332,6 +338,11 @@ class KnowledgeConfig:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
         if not 0.0 < self.model_evidence_prior < 1.0:
             raise ConfigError("knowledge.model_evidence_prior must lie strictly between 0 and 1")
+        if self.size_inputs and not self.movable_names:
+            raise ConfigError(
+                "knowledge.size_inputs needs knowledge.movable_names: two boxes' size inputs"
+                " would share one label"
+            )
 
 
 @dataclass(frozen=True)
@@ -390,6 +401,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
             "knowledge.body_sizes": False,
+            "knowledge.movable_names": True,
             "knowledge.size_inputs": False,
             "knowledge.prior_base_rate": False,
             "knowledge.model_evidence": False,

@@ -32,6 +32,11 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   that a type is about one object, not about whatever another task calls by the same name: a
   task that reuses `body` for a box of other dimensions meets other constraints, and its
   points would mislead the first task's model.
+- Or a movable body's vertex can be labelled `movable` instead of its name (`movable_names`
+  off): a name says nothing about a box's geometry, and two boxes of a task are as alike as
+  the same two names in another, so that placing one box next to another is one constraint
+  whichever boxes they are (the second box beside the first and the third beside the second
+  of a pack).
 - Or a movable body's size can be an input of the type's model (`size_inputs`): a decision
   vertex `#size:<body>` below the body's vertex, bound to the constant `size_var(body)`, which
   every point records and every suggestion fixes. Boxes of one name then share a type, and the
@@ -59,6 +64,7 @@ SIZE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[SIZE_MAX] * 3)
 same failure of boxes of different sizes is one type. A body larger than `SIZE_MAX` in any
 dimension (beyond what a tabletop arm carries) keeps its name alone."""
 SIZE_LABEL = "#size:"
+MOVABLE_LABEL = "movable"
 
 
 def size_var(body: str) -> str:
@@ -83,6 +89,12 @@ class Encodings:
     metric_frames: bool = True
     body_sizes: bool = False
     size_inputs: bool = False
+    movable_names: bool = True
+
+    def __post_init__(self) -> None:
+        if self.size_inputs and not self.movable_names:
+            # Two boxes' size vertexes would both be `#size:movable`, one decision label twice.
+            raise ValueError("size inputs need movable bodies labelled by name")
 
 
 @dataclass(frozen=True)
@@ -295,6 +307,8 @@ def failure_graph(
     encodings = encodings if encodings is not None else Encodings()
     if encodings.body_sizes:
         _label_sizes(builder.nodes, encodings.geometry)
+    if not encodings.movable_names:
+        _label_movable(builder.nodes, encodings.geometry)
     domains = encoded_domains(skeleton, check.call, builder.decisions, encodings)
     bind = label_decisions(skeleton, builder.nodes, builder.decisions, domains)
     if encodings.size_inputs and bind:
@@ -311,6 +325,16 @@ def _label_sizes(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
         if size is not None:
             mm = "x".join(str(round(v * 1000)) for v in size)
             nodes[node_id] = node.model_copy(update={"label": f"{node.label}@{mm}mm"})
+
+
+def _label_movable(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
+    """Each movable body's context vertex labelled `movable` in place of its name, a size label
+    kept (see `Encodings.movable_names`)."""
+    for node_id, node in nodes.items():
+        name = node_id.removeprefix("c:")
+        if node.role == "context" and geometry.size(name) is not None:
+            label = MOVABLE_LABEL + node.label.removeprefix(name)
+            nodes[node_id] = node.model_copy(update={"label": label})
 
 
 def _size_inputs(builder: _Builder, geometry: WorldGeometry) -> dict[str, str]:

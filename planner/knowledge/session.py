@@ -169,6 +169,7 @@ class KnowledgeSession:
             metric_frames=self.config.metric_frames,
             body_sizes=self.config.body_sizes,
             size_inputs=self.config.size_inputs,
+            movable_names=self.config.movable_names,
         )
         # Inputs of the models that are not decisions: in every point, fixed in every request.
         self._constants: dict[str, Value] = (

@@ -57,6 +57,11 @@ def test_a_misspelled_key_names_the_known_keys():
         ({"search.outlook_ratio": 0.5}, "search.outlook_ratio must be at least 1"),
         ({"knowledge.match_chunk": 5000}, "at most 1000"),
         ({"knowledge.model_evidence_prior": 1.0}, "strictly between 0 and 1"),
+        ({"cp_bo.explore_below": -0.1}, "cp_bo.explore_below must be at least 0"),
+        (
+            {"knowledge.size_inputs": True, "knowledge.movable_names": False},
+            "size_inputs needs knowledge.movable_names",
+        ),
     ],
 )
 def test_a_value_of_the_wrong_type_or_range_is_refused(overrides, message):

@@ -273,6 +273,41 @@ def test_with_body_sizes_a_type_is_about_one_object_not_one_name():
     assert "body" in roles(graph((0.042, 0.037, 0.147), on=False))["context"]
 
 
+def test_without_movable_names_one_box_beside_another_is_one_type_whichever_boxes():
+    """Pack's second box placed against its first and its third against its second: with
+    movable bodies labelled `movable` one type (by the service's hash), each bound to its own
+    placements; by name (the default, the paper's) two types. Obstacles keep their names."""
+    from planner.tasks import build_skeleton, load_task
+    from server.graphs import resolve_graph
+
+    task = load_task("pack")
+    skeleton = build_skeleton(task)
+    geometry = WorldGeometry(
+        body_sizes=tuple((b.name, tuple(b.size)) for b in task.bodies.values())
+    )
+
+    def beside(layer: int, body: str, earlier: str, names: bool):
+        call = next(c for c in skeleton.transitions[layer].calls if c.args[1].startswith("#pose"))
+        check = CheckResult(call, False, culprits=(Culprit(earlier, 0.01), Culprit("tray", 0.0)))
+        encodings = Encodings(geometry, movable_names=names)
+        return failure_graph(skeleton, layer, check, encodings=encodings)
+
+    second, third = beside(1, "body2", "body1", False), beside(2, "body3", "body2", False)
+    assert resolve_graph(second.graph).type_id == resolve_graph(third.graph).type_id
+    assert (second.bind["#pose"], second.bind["#pose-1"]) == ("#pose2", "#pose1")
+    assert (third.bind["#pose"], third.bind["#pose-1"]) == ("#pose3", "#pose2")
+    assert roles(second.graph)["context"] == {"movable", "region5", "top"}
+    named = beside(1, "body2", "body1", True), beside(2, "body3", "body2", True)
+    assert resolve_graph(named[0].graph).type_id != resolve_graph(named[1].graph).type_id
+    tray = CheckResult(skeleton.transitions[1].calls[3], False, culprits=(Culprit("tray", 0.01),))
+    tray_graph = failure_graph(
+        skeleton, 1, tray, encodings=Encodings(geometry, movable_names=False)
+    )
+    assert roles(tray_graph.graph)["context"] == {"movable", "region5", "top", "tray"}
+    with pytest.raises(ValueError, match="size inputs"):
+        Encodings(geometry, movable_names=False, size_inputs=True)
+
+
 def test_with_size_inputs_boxes_of_one_name_share_a_type_and_their_sizes_are_inputs():
     """The size is a decision vertex of the graph (one domain for every box, so one type for
     boxes of any size), bound to the body's size constant; a point records the size."""
