@@ -106,7 +106,9 @@ class SearchConfig:
     """A restarted tree draws the randomised checks afresh (IK restarts, the motion planner's
     seed), as a further attempt does: a pick that passed in an arm configuration from which no
     placement's motion succeeds is drawn again by the next tree, where one tree keeps it for
-    ever (a passed choice is never retried). Off: every tree draws as the first did."""
+    ever (a passed choice is never retried). And a tree that closes on failures no draw proved
+    (every grasp's IK found nothing) restarts instead of ending the search. Off: every tree
+    draws as the first did."""
 
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or

@@ -119,6 +119,7 @@ class PWUCT:
         self._restart_unit = self.config.restart_unit if sampler.keeps_knowledge else 0
         self.restarts = 0
         self._tree_rollouts = 0
+        self._unproven = False  # whether this tree met a failure another draw may undo
         self.rollout = 0
         self.best_depth = 0.0
         self.sim_s = 0.0
@@ -134,7 +135,9 @@ class PWUCT:
         """Rollouts until the first feasible binding list (or the whole budget)."""
         first: int | None = None
         solutions: list[dict[str, Value]] = []
-        while self.rollout < max_rollouts and not self.root.closed:
+        while self.rollout < max_rollouts:
+            if self.root.closed and not self._redraw_closed_tree():
+                break
             found = self._rollout()
             if found is None:
                 continue
@@ -154,9 +157,7 @@ class PWUCT:
                 and self._tree_rollouts >= self._restart_unit * self._tree_units()
                 and self.rollout < max_rollouts
             ):
-                self.root = self._new_root()
-                self.restarts += 1
-                self._tree_rollouts = 0
+                self._restart()
         return SearchResult(
             solved=first is not None,
             rollouts=first if first is not None else self.rollout,
@@ -169,6 +170,21 @@ class PWUCT:
             restarts=self.restarts,
             solutions=solutions,
         )
+
+    def _restart(self) -> None:
+        self.root = self._new_root()
+        self.restarts += 1
+        self._tree_rollouts = 0
+        self._unproven = False
+
+    def _redraw_closed_tree(self) -> bool:
+        """With `SearchConfig.restart_redraws`, a tree that closed on a failure no draw proved
+        (an IK or motion search that found nothing) is grown anew, drawing afresh, instead of
+        ending the search; a tree closed by proofs alone ends it."""
+        if not (self._restart_unit and self.config.restart_redraws and self._unproven):
+            return False
+        self._restart()
+        return True
 
     def _tree_units(self) -> int:
         """The current tree's allowance, in `restart_unit`s."""
@@ -321,6 +337,7 @@ class PWUCT:
             node.index, bindings, node.state, attempt=self._draw(attempt)
         )
         self.sim_s += time.perf_counter() - started
+        self._unproven = self._unproven or not outcome.conclusive
         if self.observer is not None:
             self.observer.on_transition(node.index, bindings, outcome, self.rollout + 1)
         child = ChildNode(value, node, outcome)

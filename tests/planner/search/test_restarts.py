@@ -16,7 +16,7 @@ from planner.search.analytic import AnalyticWorld, analytic_world
 from planner.search.pwuct import luby
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import QuasiRandomSampler
-from planner.world import TransitionOutcome
+from planner.world import CheckResult, TransitionOutcome
 
 
 class Unplaceable:
@@ -148,3 +148,37 @@ def test_a_restarted_tree_draws_its_checks_afresh_only_with_restart_redraws(redr
         assert sorted(set(firsts)) == [3 * k for k in range(result.restarts + 1)]
     else:
         assert set(world.picks) == {0}
+
+
+class LuckyLater(Unplaceable):
+    """The analytic desk (placeable) whose picks find no IK, inconclusively, on every draw
+    below attempt 4: the first tree's retries (attempts 1-3) never reach one that passes.
+    `proven`: the failures are proofs instead (and no attempt passes)."""
+
+    def __init__(self, proven: bool = False) -> None:
+        super().__init__()
+        self.proven = proven
+
+    def transition(
+        self, index: int, bindings: Mapping[str, Value], state: object, *, attempt: int = 0
+    ) -> TransitionOutcome:
+        outcome = self.inner.transition(index, bindings, state)
+        if index == 0 and (attempt < 4 or self.proven):
+            call = self.skeleton.transitions[0].calls[0]
+            failed = CheckResult(call, False, "no IK", conclusive=self.proven)
+            return TransitionOutcome((failed,))
+        return outcome
+
+
+@pytest.mark.parametrize("redraws", [False, True])
+def test_a_tree_closed_by_unproven_failures_restarts_with_fresh_draws(redraws):
+    """Every grasp fails inconclusively in the first tree, retries included: without
+    `restart_redraws` the search ends there, exhausted; with it a fresh tree draws anew and
+    solves. A tree closed by proofs alone still ends the search (`Unplaceable`)."""
+    config = SearchConfig(restart_unit=64, restart_redraws=redraws, inconclusive_retries=3)
+    result = PWUCT(LuckyLater(), FirstChoices(), seed=1, config=config).run(200)
+    assert result.solved is redraws
+    assert result.exhausted is not redraws
+    assert result.restarts == (1 if redraws else 0)
+    proven = PWUCT(LuckyLater(proven=True), FirstChoices(), seed=1, config=config).run(200)
+    assert proven.exhausted and not proven.solved and proven.restarts == 0
