@@ -102,13 +102,14 @@ class SearchConfig:
     """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
     units), so a task that needs one long tree loses at most the rollouts spent before it, at
     the cost of cutting a stuck tree later."""
-    restart_redraws: bool = False
+    restart_redraws: bool = True
     """A restarted tree draws the randomised checks afresh (IK restarts, the motion planner's
     seed), as a further attempt does: a pick that passed in an arm configuration from which no
     placement's motion succeeds is drawn again by the next tree, where one tree keeps it for
     ever (a passed choice is never retried). And a tree that closes on failures no draw proved
     (every grasp's IK found nothing) restarts instead of ending the search. Off: every tree
-    draws as the first did."""
+    draws as the first did, and a seed whose pick leads nowhere stays unsolved (BENCHMARKS.md,
+    heldout8)."""
 
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or
@@ -242,12 +243,14 @@ class KnowledgeConfig:
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
     same name (`planner.failures.graphs`); the paper labels by name."""
-    movable_names: bool = True
+    movable_names: bool = False
     """A movable body's vertex in a failure graph is labelled with its name, as the paper's are;
     off: `movable`, so that the failures of one box placed beside another are one type whichever
     boxes they are (pack's second box beside its first, its third beside its second, and a
     predecessor's boxes of other names), and what one pair taught, the others use
-    (`planner.failures.graphs`). Not with `size_inputs`."""
+    (`planner.failures.graphs`). Off by default: transfer on the development suite's pack
+    targets took fewer rollouts so (BENCHMARKS.md); a task with one movable body gets the same
+    types either way. `size_inputs` needs it on."""
     size_inputs: bool = False
     """A movable body's size `(x, y, z)` is an input of the models of the types it appears in
     (fixed at suggestion time, like earlier decisions), instead of being ignored (a name) or
@@ -399,6 +402,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.leave_hopeless": False,
             "search.hopeless_choices": False,
             "search.restart_unit": 0,
+            "search.restart_redraws": False,
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,

@@ -221,7 +221,7 @@ def test_with_size_inputs_a_box_of_another_size_uses_the_first_ones_points(live_
     """Points record the body's size; a task with a box of another size under the same name
     takes up the same types before any failure, and its suggestions hold its size fixed."""
     small, large = (0.04, 0.04, 0.15), (0.05, 0.06, 0.2)
-    config = KnowledgeConfig(size_inputs=True)
+    config = KnowledgeConfig(size_inputs=True, movable_names=True)
     with CpkbClient(live_kb.url) as client:
         first = KnowledgeSession(
             client, live_kb.name, sized_desk(small), background=False, config=config

@@ -289,10 +289,13 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
         "lookahead": False,
         "continuations": False,
         "prematch": False,
+        "explore_below": 0.0,
+        "random_every": 0,
     }
     search = paper.config["search"]
     assert not (search["outlook_widening"] or search["outlook_selection"])
-    assert not search["hopeless_widening"]
+    assert not (search["hopeless_widening"] or search["restart_redraws"])
+    assert paper.config["knowledge"]["movable_names"]  # the paper's graphs name their bodies
 
 
 @pytest.mark.slow
