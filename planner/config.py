@@ -259,7 +259,7 @@ class KnowledgeConfig:
     prior_base_rate: bool = False
     """A type whose points are all of one class (or too few to fit) is rated around its own
     rate of feasible points, `(a + 1) / (n + 2)`, instead of 0.5, in this planner's MPF
-    (`surrogate.models.PriorPredictor.with_base_rate`): a decision whose constraints failed
+    (`surrogate.predictors.PriorPredictor.with_base_rate`): a decision whose constraints failed
     every time so far looks worse the more it failed. Applies where the planner maximises MPF
     itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
     model_evidence: bool = False

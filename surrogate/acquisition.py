@@ -20,7 +20,7 @@ import numpy as np
 
 from surrogate.domains import Domain, Value
 from surrogate.encoding import Columns, EncodingError, SpaceEncoder, value_column
-from surrogate.models import FeasibilityPredictor, RegressionPredictor
+from surrogate.predictors import FeasibilityPredictor, RegressionPredictor
 
 
 @dataclass(frozen=True)

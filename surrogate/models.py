@@ -1,8 +1,5 @@
-"""GP surrogates on encoded inputs `Z in [0, 1]^D`.
-
-Training uses gpytorch; prediction uses frozen NumPy *predictors* holding the cached predictive
-terms of one fit, so that scoring a whole NSGA-II population is a few matrix products (no autograd,
-no Python loop per point, safe to share between threads).
+"""GP fits on encoded inputs `Z in [0, 1]^D`, with gpytorch; each returns its frozen NumPy
+predictor (`surrogate.predictors`), which is what is served, stored and scored.
 
 - `fit_classifier`: variational GP classifier (Matern 5/2 ARD, constant mean, Bernoulli/probit
   likelihood) with at most `max_inducing` inducing points (k-means initialised), trained on at
@@ -15,269 +12,35 @@ no Python loop per point, safe to share between threads).
 
 from __future__ import annotations
 
-import dataclasses
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import gpytorch
 import numpy as np
 import torch
 from imblearn.over_sampling import SMOTE
-from scipy.spatial import cKDTree
-from scipy.special import ndtr
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
 
-from surrogate.additive import AdditiveTerm, Groups, additive_cov, terms_variance
+from surrogate.additive import AdditiveTerm, Groups, additive_cov
 from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
+from surrogate.predictors import (
+    JITTER,
+    LabelRegressionPredictor,
+    PriorPredictor,
+    RegressionPredictor,
+    VGPPredictor,
+)
 
 MIN_POINTS = 4
-JITTER = 1e-6
 BOUNDARY_SHARE = 0.03  # of a subsampled fit's points, at most this many chosen as wrong ones
 WARM_LR = 0.03  # Adam's first steps are lr-sized whatever the gradient: small from a warm start
 NEIGHBOURS = 8  # without a last fit: whether most of these have the other label
-
-
-class FeasibilityPredictor(Protocol):
-    """Anything that maps GP inputs `(n, D)` to P(feasible) `(n,)`, and says how unsure it is.
-
-    `uncertainty` is the posterior standard deviation of the latent function relative to its
-    prior one, in [0, 1]: 1 where no data bears on the point (P(feasible) there is the model's
-    extrapolation), near 0 where data pins it down. One scale for every kind, so that a picture
-    can mark the unsure regions of any model with one threshold.
-    """
-
-    def proba(self, z: np.ndarray) -> np.ndarray: ...
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray: ...
-
-
-@dataclass(frozen=True)
-class PriorPredictor:
-    """The stated prior for a type with one class only or fewer than MIN_POINTS points.
-
-    p(x) = c + 2 weight ((1 - c) max_j k(x, feasible_j) - c max_j k(x, infeasible_j)), with a
-    squared exponential k of lengthscale `lengthscale * sqrt(D)`: the centre `c` far from any
-    data, low next to a known infeasible point, high next to a known feasible one. The centre
-    is 0.5 (no opinion) unless `with_base_rate` sets it to the type's rate of feasible points.
-    """
-
-    feasible: np.ndarray  # (a, D)
-    infeasible: np.ndarray  # (b, D)
-    weight: float = SurrogateConfig.prior_weight
-    lengthscale: float = SurrogateConfig.prior_lengthscale
-    center: float = 0.5
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        ell, c = self.lengthscale, self.center
-        up, down = _reach(z, self.feasible, ell), _reach(z, self.infeasible, ell)
-        return c + 2 * self.weight * ((1.0 - c) * up - c * down)
-
-    def with_base_rate(self, feasible: int = 0, infeasible: int = 0) -> PriorPredictor:
-        """This prior centred on its type's rate of feasible points, Laplace-smoothed:
-        `(a + 1) / (n + 2)` of the prior's points plus `feasible` and `infeasible` more. A type
-        whose every point so far failed is then rated lower the more often it failed, where a
-        prior centred on 0.5 rates any place far from its failures as a coin flip, however many
-        there were (a placement node that keeps failing was left only once its space was full
-        of failures)."""
-        a = len(self.feasible) + feasible
-        n = a + len(self.infeasible) + infeasible
-        return dataclasses.replace(self, center=(a + 1.0) / (n + 2.0))
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """sqrt(1 - k^2) for the largest similarity k to any point: the posterior sd of a
-        unit-variance GP with the prior's kernel, given the nearest point alone (noise-free).
-        Conditioning on every point could only lower it: an upper bound, 1 far from them all."""
-        points = np.vstack([self.feasible, self.infeasible])
-        return _unexplained(_nearest_reach(z, points, self.lengthscale))
-
-
-def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
-    """`(n,)` the largest squared-exponential similarity of each row of `z` to `points`, with
-    lengthscale `lengthscale * sqrt(D)`; 0 with no points."""
-    if len(points) == 0:
-        return np.zeros(len(z))
-    ell2 = (lengthscale**2) * z.shape[1]
-    d2 = ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1)
-    return np.exp(-0.5 * d2 / ell2).max(axis=1)
-
-
-def _nearest_reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
-    """`_reach` through a k-d tree: the largest similarity is the nearest point's, and a tree
-    finds it without the (n, points, D) array of distances a large type's prior would need."""
-    if len(points) == 0:
-        return np.zeros(len(z))
-    distance, _ = cKDTree(points).query(z)
-    return np.exp(-0.5 * distance**2 / ((lengthscale**2) * z.shape[1]))
-
-
-def _unexplained(reach: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.clip(1.0 - reach**2, 0.0, 1.0))
-
-
-@dataclass(frozen=True)
-class RecentPoints:
-    """A fitted predictor plus the points that arrived after its fit, as the stated prior
-    weighs them: P(feasible) falls next to a new infeasible point and rises next to a new
-    feasible one, until the next fit takes them in. Rollouts are cheaper than fits, so without
-    this a planner keeps being sent back to where it has just failed."""
-
-    base: FeasibilityPredictor
-    feasible: np.ndarray  # (a, D)
-    infeasible: np.ndarray  # (b, D)
-    weight: float = SurrogateConfig.recent_weight
-    lengthscale: float = SurrogateConfig.recent_lengthscale
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        p = self.base.proba(z)
-        up = self.weight * _reach(z, self.feasible, self.lengthscale)
-        down = self.weight * _reach(z, self.infeasible, self.lengthscale)
-        return p + (1.0 - p) * up * (1.0 - down) - p * down * (1.0 - up)
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The fit's, lowered next to the new points as the prior's bound has it (with this
-        wrapper's reach): more data can only lower a GP's posterior variance."""
-        points = np.vstack([self.feasible, self.infeasible])
-        near = _unexplained(_nearest_reach(z, points, self.lengthscale))
-        return np.minimum(self.base.uncertainty(z), near)
-
-
-@dataclass(frozen=True)
-class Mixture:
-    """`weight` times one predictor's answer plus the rest times another's: a Bayesian model
-    average of two predictors of one type, `weight` the first's posterior probability."""
-
-    first: FeasibilityPredictor
-    second: FeasibilityPredictor
-    weight: float
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        w = self.weight
-        return w * self.first.proba(z) + (1.0 - w) * self.second.proba(z)
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        w = self.weight
-        return w * self.first.uncertainty(z) + (1.0 - w) * self.second.uncertainty(z)
-
-
-@dataclass(frozen=True)
-class UnseenChoices:
-    """A fit answers for the choices of its categorical variables that its points hold; for a
-    choice that none of them has (a grasp the earlier tasks never tried), `prior` answers: the
-    fit's value there is an extrapolation to the type's base rate, which would rate an untried
-    grasp as badly as the ones that failed."""
-
-    base: FeasibilityPredictor
-    prior: FeasibilityPredictor
-    seen: tuple[tuple[slice, np.ndarray], ...]  # per categorical: its columns, the seen rows (k, w)
-
-    def _unseen(self, z: np.ndarray) -> np.ndarray:
-        unseen = np.zeros(len(z), dtype=bool)
-        for columns, rows in self.seen:
-            same = np.abs(z[:, None, columns] - rows[None, :, :]).max(axis=-1) < 1e-9
-            unseen |= ~same.any(axis=1)
-        return unseen
-
-    def _answer(self, z: np.ndarray, of_base: Any, of_prior: Any) -> np.ndarray:
-        """`of_base(z)`, with `of_prior` answering for the rows of untried choices (asked of
-        those rows only: the prior's cost grows with the type's points)."""
-        values = of_base(z)
-        unseen = self._unseen(z)
-        if not unseen.any():
-            return values
-        values = np.array(values, dtype=float)
-        values[unseen] = of_prior(z[unseen])
-        return values
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        return self._answer(z, self.base.proba, self.prior.proba)
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The prior's where it answers (an untried choice), the fit's elsewhere."""
-        return self._answer(z, self.base.uncertainty, self.prior.uncertainty)
-
-
-@dataclass(frozen=True)
-class VGPPredictor:
-    """Cached predictive terms of a whitened variational GP: mean = c + K_xz a,
-    var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var)). The kernel
-    is the ARD Matern over all inputs plus the `terms` (`surrogate.additive`), if any."""
-
-    inducing: np.ndarray  # (m, D)
-    lengthscale: np.ndarray  # (D,)
-    outputscale: float
-    constant: float
-    a: np.ndarray  # (m,) = L^-T m_v
-    b: np.ndarray  # (m, m) = L^-T (S - I) L^-1
-    terms: tuple[AdditiveTerm, ...] = ()
-
-    @property
-    def prior_variance(self) -> float:
-        return self.outputscale + terms_variance(self.terms)
-
-    def latent(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        kxz = matern52(z, self.inducing, self.lengthscale, self.outputscale)
-        if self.terms:
-            kxz = kxz + additive_cov(z, self.inducing, self.terms)
-        mean = self.constant + kxz @ self.a
-        var = self.prior_variance + JITTER + ((kxz @ self.b) * kxz).sum(1)
-        return mean, np.maximum(var, 1e-12)
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        mean, var = self.latent(z)
-        return ndtr(mean / np.sqrt(1.0 + var))
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The latent posterior sd over the prior's (`prior_variance`): 1 away from the
-        inducing points, lower where the variational posterior has learnt from data."""
-        _, var = self.latent(z)
-        return np.sqrt(np.clip(var / (self.prior_variance + JITTER), 0.0, 1.0))
-
-
-@dataclass(frozen=True)
-class RegressionPredictor:
-    """Cached exact-GP posterior: mean = c + K_xX alpha, var = k_xx - |L^-1 K_Xx|^2 (latent f),
-    in the units of the training targets."""
-
-    train: np.ndarray  # (n, D)
-    lengthscale: np.ndarray
-    outputscale: float
-    constant: float
-    noise: float
-    alpha: np.ndarray  # (n,)
-    chol_inv: np.ndarray  # (n, n) = L^-1, L = chol(K + noise I)
-    y_shift: float = 0.0
-    y_scale: float = 1.0
-
-    def predict(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior mean and standard deviation of f at `z (n, D)`."""
-        kxn = matern52(z, self.train, self.lengthscale, self.outputscale)
-        mean = self.constant + kxn @ self.alpha
-        w = kxn @ self.chol_inv.T
-        var = np.maximum(self.outputscale - (w * w).sum(1), 1e-12)
-        return self.y_shift + self.y_scale * mean, self.y_scale * np.sqrt(var)
-
-
-@dataclass(frozen=True)
-class LabelRegressionPredictor:
-    """The authors' variant: GP regression on +1 (feasible) / -1 labels, PoF = Phi(mu / sigma)."""
-
-    regression: RegressionPredictor
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        mean, std = self.regression.predict(z)
-        return ndtr(mean / std)
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The latent posterior sd over the prior's (the label scale is fixed at 1 here)."""
-        r = self.regression
-        _, std = r.predict(z)
-        return np.clip(std / (r.y_scale * np.sqrt(r.outputscale)), 0.0, 1.0)
 
 
 @dataclass

@@ -18,7 +18,7 @@ import numpy as np
 
 from surrogate.additive import AdditiveTerm
 from surrogate.domains import space_from_json, space_to_json
-from surrogate.models import (
+from surrogate.predictors import (
     FeasibilityPredictor,
     LabelRegressionPredictor,
     PriorPredictor,

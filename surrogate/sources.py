@@ -15,15 +15,8 @@ import numpy as np
 
 from surrogate.domains import Domain, Value
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import (
-    MIN_POINTS,
-    FeasibilityPredictor,
-    Fit,
-    PriorPredictor,
-    RecentPoints,
-    UnseenChoices,
-    fit_classifier,
-)
+from surrogate.models import MIN_POINTS, Fit, fit_classifier
+from surrogate.predictors import FeasibilityPredictor, PriorPredictor, RecentPoints, UnseenChoices
 from surrogate.suggest import TypeModel
 
 Seen = tuple[tuple[slice, np.ndarray], ...]

@@ -22,9 +22,9 @@ import numpy as np
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints
 from surrogate.domains import Domain, Value, domain_to_json, space_from_json
 from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
-from surrogate.models import FeasibilityPredictor
 from surrogate.optimize import OptimizerConfig, maximize_batch, space_filling
 from surrogate.pending import Pending
+from surrogate.predictors import FeasibilityPredictor
 
 
 class InvalidRequest(ValueError):

@@ -15,7 +15,7 @@ apart. When it closes it withdraws what is left.
 The other planners' feasible points are also kept apart (`PeerHints`), a few per type, as
 candidates for this planner's MPF maximisation (and, with `knowledge.stored_hints`, those that
 earlier runs stored, read once when the run starts): a fresh point changes its model only within a
-short reach (`surrogate.models.RecentPoints`), which the maximiser's raw samples rarely land in,
+short reach (`surrogate.predictors.RecentPoints`), which the maximiser's raw samples rarely land in,
 so without them a binding another planner has just found stays unseen here until a fit has
 taken it in, and with several planners on one service the fits lag.
 

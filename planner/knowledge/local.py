@@ -41,9 +41,9 @@ from surrogate import snapshot
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
+from surrogate.predictors import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
 from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
 from surrogate.suggest import suggest as suggest_point
 

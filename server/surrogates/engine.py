@@ -50,9 +50,10 @@ from surrogate.additive import Groups, term_groups
 from surrogate.config import AdditiveMode, SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import MIN_POINTS, FeasibilityPredictor, Fit, fit_classifier, warm_up
+from surrogate.models import MIN_POINTS, Fit, fit_classifier, warm_up
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import Pending, PendingBook
+from surrogate.predictors import FeasibilityPredictor
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
 from surrogate.suggest import TypeModel
 

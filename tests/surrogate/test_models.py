@@ -7,15 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from surrogate.models import (
-    _SVGP,
-    PriorPredictor,
-    VGPPredictor,
-    _reach,
-    fit_classifier,
-    fit_label_regression,
-    fit_regression,
-)
+from surrogate.models import _SVGP, fit_classifier, fit_label_regression, fit_regression
+from surrogate.predictors import PriorPredictor, VGPPredictor, _reach
 
 
 def half_space(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +139,7 @@ def test_label_regression_variant_gives_probabilities() -> None:
 def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
     """Points that arrived after a fit lower P(feasible) next to a new failure and raise it
     next to a new success, and leave it alone far from both."""
-    from surrogate.models import RecentPoints
+    from surrogate.predictors import RecentPoints
 
     z, y = half_space(60, 3)
     fit = fit_classifier(z, y, seed=0, max_iters=60)
@@ -163,7 +156,7 @@ def test_recent_points_move_a_fit_until_the_next_one_takes_them_in() -> None:
 def test_a_choice_no_point_holds_gets_the_prior_not_the_fits_extrapolation() -> None:
     from surrogate.domains import CategoricalDomain, ContinuousDomain
     from surrogate.encoding import SpaceEncoder
-    from surrogate.models import UnseenChoices
+    from surrogate.predictors import UnseenChoices
 
     space = {
         "d": CategoricalDomain(choices=["front", "right", "top"]),

@@ -8,7 +8,7 @@ import pytest
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints, Scored, ucb
 from surrogate.domains import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import SpaceEncoder
-from surrogate.models import PriorPredictor, fit_classifier, fit_regression
+from surrogate.models import fit_classifier, fit_regression
 from surrogate.optimize import (
     OptimizerConfig,
     SpaceExhausted,
@@ -16,6 +16,7 @@ from surrogate.optimize import (
     maximize_batch,
     space_filling,
 )
+from surrogate.predictors import PriorPredictor
 
 DIRS = ["front", "right", "top", "back", "left"]
 SPACE = {

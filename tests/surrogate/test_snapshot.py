@@ -8,13 +8,8 @@ import numpy as np
 import pytest
 
 from surrogate import snapshot
-from surrogate.models import (
-    PriorPredictor,
-    RecentPoints,
-    UnseenChoices,
-    fit_classifier,
-    fit_label_regression,
-)
+from surrogate.models import fit_classifier, fit_label_regression
+from surrogate.predictors import PriorPredictor, RecentPoints, UnseenChoices
 
 
 def _data(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -5,14 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from surrogate.models import (
-    PriorPredictor,
-    RecentPoints,
-    UnseenChoices,
-    _reach,
-    fit_classifier,
-    fit_label_regression,
-)
+from surrogate.models import fit_classifier, fit_label_regression
+from surrogate.predictors import PriorPredictor, RecentPoints, UnseenChoices, _reach
 from surrogate.snapshot import dump, load
 
 

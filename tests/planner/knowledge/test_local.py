@@ -5,6 +5,8 @@ against a real service where HTTP matters."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -295,3 +297,22 @@ def test_a_model_that_keeps_being_right_here_keeps_its_say() -> None:
     local, (right_side, left_side) = _after_own_points(evidence=True, feasible=True)
     assert local._models["T"].evidence.weight > 0.9
     assert right_side - left_side > 0.5
+
+
+def test_a_cp_bo_planner_loads_without_torch() -> None:
+    """A planner scores served snapshots with NumPy predictors, so starting one (every built-in
+    sampler registered, the cp-bo sampler built) does not pay for importing torch, gpytorch or
+    the fitting libraries; only the service fits."""
+    probe = (
+        "import sys\n"
+        "from planner.search import samplers\n"
+        "import planner.run\n"
+        "from planner.knowledge.local import LocalSurrogates\n"
+        "samplers.methods()\n"
+        "heavy = ('torch', 'gpytorch', 'imblearn', 'sklearn')\n"
+        "print(sorted(m for m in heavy if m in sys.modules))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=300
+    )
+    assert result.stdout.strip() == "[]"
