@@ -10,7 +10,15 @@ import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_validator,
+)
 
 MAX_LABEL = 128
 MAX_CHOICES = 64
@@ -117,7 +125,11 @@ class ContinuousDomain(_Strict):
 
     `scale` optionally gives, for such a pose, the half extents in metres `[half_x, half_y]`
     that the position dimensions span about the frame's centre: the relative pose is then
-    measured in metres, right for rectangular frames and for poses scaled unlike each other."""
+    measured in metres, right for rectangular frames and for poses scaled unlike each other.
+
+    `relative_only` marks such a pose whose own columns (where it lies in the frame, its heading
+    there) are not model inputs in a type that also holds another pose of its frame: the type
+    sees only their relative pose, as a collision between two placed bodies depends on it."""
 
     kind: Literal["continuous"] = "continuous"
     low: list[Number] = Field(min_length=1, max_length=MAX_DIM)
@@ -125,6 +137,12 @@ class ContinuousDomain(_Strict):
     frame: Label | None = None
     heading: int | None = Field(default=None, ge=0, le=2)
     scale: list[Number] | None = Field(default=None, min_length=2, max_length=2)
+    relative_only: bool | None = None  # None (off) stays out of the type's canonical form
+
+    @field_validator("relative_only")
+    @classmethod
+    def _off_is_none(cls, value: bool | None) -> bool | None:
+        return True if value else None
 
     @model_validator(mode="after")
     def _check(self) -> ContinuousDomain:
@@ -141,6 +159,8 @@ class ContinuousDomain(_Strict):
                 raise ValueError("scale needs a heading (a framed planar pose)")
             if not all(math.isfinite(v) and v >= 0 for v in self.scale):
                 raise ValueError("scale must be two finite half extents >= 0 (metres)")
+        if self.relative_only and self.heading is None:
+            raise ValueError("relative_only needs a heading (a framed planar pose)")
         return self
 
 

@@ -239,6 +239,11 @@ class KnowledgeConfig:
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
     development suite's pack tasks it took more rollouts."""
+    relative_pairs: bool = False
+    """In a type holding two placements of one region (a box placed beside another), the
+    model's inputs are their relative pose alone, not where each lies in the region as well
+    (`surrogate.encoding`): what a predecessor learnt about boxes beside each other then holds
+    wherever the target's first box stands. The paper's inputs are the decisions' values."""
     body_sizes: bool = False
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
@@ -406,6 +411,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
+            "knowledge.relative_pairs": False,
             "knowledge.body_sizes": False,
             "knowledge.movable_names": True,
             "knowledge.size_inputs": False,

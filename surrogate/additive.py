@@ -48,7 +48,7 @@ def term_groups(encoder: SpaceEncoder, mode: AdditiveMode | str) -> Groups:
     chosen = [
         var
         for var in encoder.vars
-        if mode == "decisions" or isinstance(var.domain, CategoricalDomain)
+        if var.in_z and (mode == "decisions" or isinstance(var.domain, CategoricalDomain))
     ]
     return tuple(tuple(range(var.start, var.start + var.width)) for var in chosen)
 

@@ -34,13 +34,16 @@ class CategoricalDomain:
 class ContinuousDomain:
     """A box `low..high`; `frame` names the space the values are positions in, `heading` the
     index of a planar pose's heading dimension, `scale` the half extents in metres that the
-    position dimensions span about the frame's centre (see `surrogate.encoding`)."""
+    position dimensions span about the frame's centre, `relative_only` that the pose's own
+    columns are left out where its relative pose to another of its frame is encoded (see
+    `surrogate.encoding`)."""
 
     low: tuple[float, ...]
     high: tuple[float, ...]
     frame: str | None = None
     heading: int | None = None
     scale: tuple[float, float] | None = None
+    relative_only: bool = False
     kind: str = "continuous"
 
 
@@ -62,10 +65,13 @@ def continuous(
     frame: str | None = None,
     heading: int | None = None,
     scale: list[float] | tuple[float, ...] | None = None,
+    relative_only: bool = False,
 ) -> ContinuousDomain:
     """A continuous domain from lists."""
     half = None if scale is None else (float(scale[0]), float(scale[1]))
-    return ContinuousDomain(tuple(map(float, low)), tuple(map(float, high)), frame, heading, half)
+    return ContinuousDomain(
+        tuple(map(float, low)), tuple(map(float, high)), frame, heading, half, bool(relative_only)
+    )
 
 
 def domain_from_json(obj: Mapping[str, Any]) -> Domain:
@@ -76,7 +82,12 @@ def domain_from_json(obj: Mapping[str, Any]) -> Domain:
             return categorical(obj["choices"], obj.get("embedding"))
         if obj["kind"] == "continuous":
             return continuous(
-                obj["low"], obj["high"], obj.get("frame"), obj.get("heading"), obj.get("scale")
+                obj["low"],
+                obj["high"],
+                obj.get("frame"),
+                obj.get("heading"),
+                obj.get("scale"),
+                bool(obj.get("relative_only")),
             )
     except (KeyError, TypeError, ValueError) as exc:
         raise DomainError(f"not a domain: {exc}") from exc
@@ -97,6 +108,8 @@ def domain_to_json(domain: Domain) -> dict[str, Any]:
         out["heading"] = domain.heading
     if domain.scale is not None:
         out["scale"] = list(domain.scale)
+    if domain.relative_only:
+        out["relative_only"] = True
     return out
 
 

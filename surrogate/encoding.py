@@ -27,10 +27,16 @@ in x than in y in a rectangular region, and differs between bodies of different 
 one region, so offsets in seed units would turn with the heading wrongly. The metric offsets
 are divided by twice the pair's larger reach, which for a square frame and equal bodies gives
 the same numbers as seed units; a pair without both scales keeps the seed-unit encoding.
+
+A pose whose domain is `relative_only` and that forms such a pair has no columns of its own: the
+type's inputs are the relative pose alone. Where a predecessor placed the first box always on one
+side, a model on the absolute places learns "the second box fits on the other side"; a model on
+the relative pose learns "the second box fits beside the first", which holds wherever the first is.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -65,9 +71,10 @@ def same_domain(a: Domain, b: Domain) -> bool:
 class _Var:
     name: str
     domain: Domain
-    start: int  # first column of this variable in Z
+    start: int  # first column of this variable in Z (-1: none, see `in_z`)
     width: int
     table: np.ndarray | None = None  # categorical: (k, width) rows used for the choices
+    in_z: bool = True  # False: a relative-only pose, seen only through its relative poses
 
 
 def _categorical_table(domain: CategoricalDomain) -> np.ndarray:
@@ -86,18 +93,32 @@ class SpaceEncoder:
 
     def __init__(self, space: Mapping[str, Domain], *, separations: bool = True) -> None:
         self.space: dict[str, Domain] = dict(space)
-        self.vars: list[_Var] = []
-        start = 0
+        laid_out: list[_Var] = []
         for name, domain in self.space.items():
             if isinstance(domain, CategoricalDomain):
                 table = _categorical_table(domain)
-                var = _Var(name, domain, start, table.shape[1], table)
+                laid_out.append(_Var(name, domain, -1, table.shape[1], table))
             else:
-                var = _Var(name, domain, start, len(domain.low))
-            self.vars.append(var)
+                laid_out.append(_Var(name, domain, -1, len(domain.low)))
+        pairs = _framed_pairs(laid_out) if separations else []
+        relative = {
+            v.name
+            for a, b in pairs
+            if _shared_heading(a, b) is not None
+            for v in (a, b)
+            if v.domain.relative_only  # type: ignore[union-attr]
+        }
+        self.vars: list[_Var] = []
+        start = 0
+        for var in laid_out:
+            if var.name in relative:
+                self.vars.append(dataclasses.replace(var, in_z=False))
+                continue
+            self.vars.append(dataclasses.replace(var, start=start))
             start += var.width
+        by_name = {v.name: v for v in self.vars}
         self.base_dim = start  # the variables' own columns; the separations follow them
-        self.separations = _framed_pairs(self.vars) if separations else []
+        self.separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
         self.dim = start + sum(_pair_width(a, b) for a, b in self.separations)
 
     # --- points <-> columns -------------------------------------------------------------
@@ -129,21 +150,21 @@ class SpaceEncoder:
         """`(n, D)` GP inputs; broadcasting a column of length 1 to the others' length."""
         n = max(len(cols[v.name]) for v in self.vars)
         z = np.empty((n, self.dim))
+        units: dict[str, np.ndarray] = {}
         for var in self.vars:
             col = cols[var.name]
-            block = slice(var.start, var.start + var.width)
             if var.table is not None:
-                z[:, block] = var.table[np.asarray(col, dtype=int)]
+                unit = var.table[np.asarray(col, dtype=int)]
             else:
                 low = np.asarray(var.domain.low)
                 high = np.asarray(var.domain.high)
-                z[:, block] = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (
-                    high - low
-                )
+                unit = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (high - low)
+            units[var.name] = np.broadcast_to(unit, (n, var.width))
+            if var.in_z:
+                z[:, var.start : var.start + var.width] = units[var.name]
         start = self.base_dim
         for a, b in self.separations:
-            za = z[:, a.start : a.start + a.width]
-            zb = z[:, b.start : b.start + b.width]
+            za, zb = units[a.name], units[b.name]
             heading = _shared_heading(a, b)
             if heading is None:
                 pair = np.abs(za - zb)
@@ -154,7 +175,10 @@ class SpaceEncoder:
         return z
 
     def decode(self, z: np.ndarray) -> Columns:
-        """Columns nearest to `z` (a categorical takes the closest choice row)."""
+        """Columns nearest to `z` (a categorical takes the closest choice row); not for an
+        encoding with relative-only poses, whose own columns are not in `z`."""
+        if not all(var.in_z for var in self.vars):
+            raise ValueError("relative-only poses cannot be decoded: their columns are not in Z")
         cols: Columns = {}
         for var in self.vars:
             block = z[:, var.start : var.start + var.width]

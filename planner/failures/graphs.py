@@ -27,7 +27,8 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   placements tried with `front` and `right` agreed). The top grasp stays apart. Switches:
   `square_grasps` (square footprints), `grasp_symmetry` (opposite faces of any box).
 - A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
-  the relative pose of two placements is measured in metres (`surrogate.encoding`).
+  the relative pose of two placements is measured in metres (`surrogate.encoding`); with
+  `relative_pairs`, a type holding two placements of one region sees only that relative pose.
 - A movable body's vertex can be labelled with its size to the millimetre (`body_sizes`), so
   that a type is about one object, not about whatever another task calls by the same name: a
   task that reuses `body` for a box of other dimensions meets other constraints, and its
@@ -87,6 +88,7 @@ class Encodings:
     square_grasps: bool = True
     grasp_symmetry: bool = True
     metric_frames: bool = True
+    relative_pairs: bool = False
     body_sizes: bool = False
     size_inputs: bool = False
     movable_names: bool = True
@@ -236,13 +238,13 @@ def encoded_domains(
         extents = geometry.extents(var)
         if var in held and isinstance(domain, CategoricalDomain):
             domain = held_grasp_domain(domain, square)
-        elif (
-            encodings.metric_frames
-            and extents is not None
-            and isinstance(domain, ContinuousDomain)
-            and domain.heading is not None
-        ):
-            domain = domain.model_copy(update={"scale": list(extents)})
+        elif isinstance(domain, ContinuousDomain) and domain.heading is not None:
+            update: dict[str, object] = {}
+            if encodings.metric_frames and extents is not None:
+                update["scale"] = list(extents)
+            if encodings.relative_pairs:
+                update["relative_only"] = True
+            domain = domain.model_copy(update=update)
         out[var] = domain
     return out
 

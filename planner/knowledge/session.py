@@ -167,6 +167,7 @@ class KnowledgeSession:
             square_grasps=self.config.square_grasps,
             grasp_symmetry=self.config.grasp_symmetry,
             metric_frames=self.config.metric_frames,
+            relative_pairs=self.config.relative_pairs,
             body_sizes=self.config.body_sizes,
             size_inputs=self.config.size_inputs,
             movable_names=self.config.movable_names,

@@ -107,7 +107,12 @@ def test_a_bad_file_is_a_clear_error(tmp_path, name, text, message):
 
 def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
     asked = PlanConfig().with_overrides(
-        {"cp_bo.lookahead": True, "search.pw_k": 7, "search.restart_unit": 16}
+        {
+            "cp_bo.lookahead": True,
+            "search.pw_k": 7,
+            "search.restart_unit": 16,
+            "knowledge.relative_pairs": True,
+        }
     )
     paper = method_config("cp-bo-paper", asked)
     assert not (paper.cp_bo.lookahead or paper.cp_bo.prematch or paper.cp_bo.continuations)
@@ -117,6 +122,7 @@ def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
     assert search.restart_unit == 0
     knowledge = paper.knowledge
     assert not (knowledge.square_grasps or knowledge.grasp_symmetry or knowledge.metric_frames)
+    assert not knowledge.relative_pairs
     assert search.pw_k == 7.0  # a knob the paper does not fix stays the caller's
     assert method_config("cp-bo", asked) == asked
     assert PlanRequest("analytic:desk", "cp-bo-paper", 0).config == method_config("cp-bo-paper")

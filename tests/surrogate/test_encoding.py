@@ -250,3 +250,45 @@ def test_a_scale_survives_the_wire_and_needs_a_framed_planar_pose() -> None:
         WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", scale=[0.3, 0.1])
     with pytest.raises(ValidationError, match="half extents"):
         WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, scale=[0.3, -0.1])
+
+
+def relative_only_space() -> dict:
+    pose = continuous([0.0, 0.0, -np.pi], [1.0, 1.0, np.pi], "tray", 2, None, True)
+    return {"dir": CategoricalDomain(choices=DIRS), "a": pose, "b": pose}
+
+
+def test_a_relative_only_pair_is_seen_through_its_relative_pose_alone() -> None:
+    """Two placements marked relative-only add no columns of their own: a pair moved together
+    across the tray encodes alike, the grasp keeps its columns, and a type with one such pose
+    (nothing to be relative to) keeps that pose's columns."""
+    encoder = SpaceEncoder(relative_only_space())
+    assert encoder.dim == len(DIRS) + 5 and encoder.base_dim == len(DIRS)
+    z = encoder.encode_points(
+        [
+            {"dir": "top", "a": [0.2, 0.3, 0.4], "b": [0.5, 0.3, 0.4]},
+            {"dir": "top", "a": [0.6, 0.7, 0.4], "b": [0.9, 0.7, 0.4]},
+            {"dir": "top", "a": [0.6, 0.7, 0.4], "b": [0.9, 0.1, 0.4]},
+        ]
+    )
+    np.testing.assert_allclose(z[0], z[1], atol=1e-12)
+    assert np.abs(z[0] - z[2]).max() > 0.1
+    full = SpaceEncoder({**relative_only_space(), "a": planar_space()["a"]})
+    assert full.dim == len(DIRS) + 3 + 5  # `b` alone is relative-only: `a` keeps its columns
+    alone = SpaceEncoder({"a": relative_only_space()["a"]})
+    assert alone.dim == 3
+    with pytest.raises(ValueError, match="relative-only"):
+        encoder.decode(z)
+
+
+def test_relative_only_survives_the_wire_and_off_leaves_the_contract_as_it_was() -> None:
+    from client.models import ContinuousDomain as WireDomain
+
+    wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, relative_only=True)
+    domain = domain_from_json(wire.model_dump())
+    assert domain.relative_only
+    assert WireDomain.model_validate(domain_to_json(domain)) == wire
+    off = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, relative_only=False)
+    assert "relative_only" not in off.model_dump(exclude_none=True)  # type ids stay as they were
+    assert not domain_from_json(off.model_dump()).relative_only
+    with pytest.raises(ValidationError, match="relative_only needs a heading"):
+        WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", relative_only=True)

@@ -347,3 +347,21 @@ def test_size_inputs_make_no_graph_of_a_failure_without_decisions():
     )
     assert fg.bind == {}
     assert all(n.role != "decision" for n in fg.graph.nodes)
+
+
+def test_with_relative_pairs_a_placement_is_marked_relative_only():
+    """The switch marks every framed planar pose of a graph (with or without metres); the
+    encoder then drops its own columns only where the type holds a pair of them. Off, the
+    domain is the declared one, so the paper's types keep their ids."""
+    skeleton = regrasp_skeleton(pose=pose_domain("region2"))
+    geometry = WorldGeometry(placement_extents=(("#pose12", (0.21, 0.07)),))
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
+
+    def pose_of(encodings: Encodings):
+        graph = failure_graph(skeleton, 3, shelf_ik, encodings=encodings).graph
+        return next(n.domain for n in graph.nodes if n.label == "#pose")
+
+    marked = pose_of(Encodings(geometry, relative_pairs=True))
+    assert marked.relative_only and marked.scale == [0.21, 0.07]
+    assert pose_of(Encodings(geometry, relative_pairs=True, metric_frames=False)).relative_only
+    assert pose_of(Encodings(geometry)).relative_only is None
