@@ -239,11 +239,13 @@ class KnowledgeConfig:
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
     development suite's pack tasks it took more rollouts."""
-    relative_pairs: bool = False
+    relative_pairs: bool = True
     """In a type holding two placements of one region (a box placed beside another), the
     model's inputs are their relative pose alone, not where each lies in the region as well
-    (`surrogate.encoding`): what a predecessor learnt about boxes beside each other then holds
-    wherever the target's first box stands. The paper's inputs are the decisions' values."""
+    (`surrogate.encoding`): what one pair of boxes taught (in a predecessor, or earlier in the
+    run) then holds wherever the next pair stands. On: on the development suite's pack targets
+    cp-bo and transfer took fewer rollouts with it (BENCHMARKS.md); the paper's inputs are the
+    decisions' values."""
     body_sizes: bool = False
     """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
     knowledge transfers between tasks only for the same object, not for another object of the
