@@ -71,10 +71,15 @@ def same_domain(a: Domain, b: Domain) -> bool:
 class _Var:
     name: str
     domain: Domain
-    start: int  # first column of this variable in Z (-1: none, see `in_z`)
+    start: int  # first column of this variable in Z; -1 for a relative-only pose (none)
     width: int
     table: np.ndarray | None = None  # categorical: (k, width) rows used for the choices
-    in_z: bool = True  # False: a relative-only pose, seen only through its relative poses
+
+    @property
+    def in_z(self) -> bool:
+        """Whether the variable has columns of its own (a relative-only pose is seen only
+        through its relative poses)."""
+        return self.start >= 0
 
 
 def _categorical_table(domain: CategoricalDomain) -> np.ndarray:
@@ -112,7 +117,7 @@ class SpaceEncoder:
         start = 0
         for var in laid_out:
             if var.name in relative:
-                self.vars.append(dataclasses.replace(var, in_z=False))
+                self.vars.append(var)
                 continue
             self.vars.append(dataclasses.replace(var, start=start))
             start += var.width
