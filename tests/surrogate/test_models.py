@@ -66,6 +66,16 @@ def test_prior_for_few_points_or_one_class() -> None:
     assert mixed.kind == "prior" and mixed.predictor.proba(z[:1])[0] > 0.9
 
 
+def test_reach_is_the_nearest_points_similarity() -> None:
+    rng = np.random.default_rng(3)
+    z, points = rng.random((64, 5)), rng.random((40, 5))
+    ell2 = (0.2**2) * 5
+    every = np.exp(-0.5 * ((z[:, None, :] - points[None, :, :]) ** 2).sum(-1) / ell2)
+    assert _reach(z, points, 0.2) == pytest.approx(every.max(axis=1), rel=1e-9, abs=1e-12)
+    assert _reach(points[:3], points, 0.2) == pytest.approx(np.ones(3))
+    assert _reach(z, points[:0], 0.2).tolist() == [0.0] * 64
+
+
 def test_a_prior_centred_on_its_base_rate_falls_as_failures_accumulate() -> None:
     """Centred on 0.5 the prior is the stated one; on the base rate, a type that failed
     everywhere is rated lower far from its failures the more of them there are, and a known
