@@ -92,7 +92,7 @@ def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
 
 def _nearest_reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     """`_reach` through a k-d tree: the largest similarity is the nearest point's, and a tree
-    finds it without the (n, points, D) array of distances a large type's prior would need."""
+    finds it without the (n, points) matrix of distances a large type's prior would need."""
     if len(points) == 0:
         return np.zeros(len(z))
     distance, _ = cKDTree(points).query(z)
