@@ -18,6 +18,7 @@ import numpy as np
 
 from surrogate.domains import CategoricalDomain, Domain, Value
 from surrogate.encoding import Columns, EncodingError, SpaceEncoder
+from surrogate.kernels import squared_distances
 
 
 @dataclass(frozen=True)
@@ -177,5 +178,4 @@ def _valid(encoder: SpaceEncoder, point: Mapping[str, Value]) -> bool:
 
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """`(n, k)` Euclidean distances divided by sqrt(dim), so that 1 spans the unit cube."""
-    d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * (a @ b.T)
-    return np.sqrt(np.maximum(d2, 0.0)) / np.sqrt(max(a.shape[1], 1))
+    return np.sqrt(squared_distances(a, b)) / np.sqrt(max(a.shape[1], 1))

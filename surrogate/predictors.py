@@ -18,7 +18,7 @@ from scipy.special import ndtr
 
 from surrogate.additive import AdditiveTerm, additive_cov, terms_variance
 from surrogate.config import SurrogateConfig
-from surrogate.kernels import matern52
+from surrogate.kernels import matern52, squared_distances
 
 JITTER = 1e-6
 
@@ -82,11 +82,9 @@ def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     lengthscale `lengthscale * sqrt(D)`; 0 with no points."""
     if len(points) == 0:
         return np.zeros(len(z))
-    # The largest similarity is the nearest point's: squared distances by one matrix product
-    # (no (n, points, D) array), one exp per row. A suggestion calls this on a few hundred
-    # candidates per term, so it is on the path of every guided expansion.
-    d2 = (z * z).sum(1)[:, None] + (points * points).sum(1)[None, :] - 2.0 * (z @ points.T)
-    nearest = np.maximum(d2.min(axis=1), 0.0)
+    # The largest similarity is the nearest point's: one exp per row, not one per pair, on the
+    # path of every guided suggestion.
+    nearest = squared_distances(z, points).min(axis=1)
     return np.exp(-0.5 * nearest / ((lengthscale**2) * z.shape[1]))
 
 
