@@ -358,6 +358,22 @@ class KnowledgeConfig:
 
 
 @dataclass(frozen=True)
+class SimConfig:
+    """How the simulator checks a binding (`planner.sim`). Unlike a task file's `settings`,
+    which say how thorough a check must be for that task, these are policies of the checks
+    themselves, the same for every task, so that a variant of them is a configuration."""
+
+    ik_collided_stop: int = 0
+    """A failing IK search gives up after this many restarts reached the pose but collided
+    (0: it runs all of the task's `ik_restarts`). Restarts near the first guess that collide
+    say the pose is blocked; more of them rarely find a free arm and cost most of the IK
+    time of a guided rollout."""
+
+    def __post_init__(self) -> None:
+        _at_least(self, ik_collided_stop=0)
+
+
+@dataclass(frozen=True)
 class PlanConfig:
     """The whole configuration of one planner run."""
 
@@ -367,6 +383,7 @@ class PlanConfig:
     quasi_random: QuasiRandomConfig = field(default_factory=QuasiRandomConfig)
     optuna_tpe: OptunaTpeConfig = field(default_factory=OptunaTpeConfig)
     knowledge: KnowledgeConfig = field(default_factory=KnowledgeConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         return dataclasses.asdict(self)

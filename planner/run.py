@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from client.models import Value
-from planner.config import PlanConfig, method_config
+from planner.config import PlanConfig, SimConfig, method_config
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
@@ -127,8 +127,10 @@ class PlanResult:
         return out
 
 
-def load_world(task: str | Path | BindingWorld, seed: int, *, gui: bool = False) -> BindingWorld:
-    """A world for `task`; analytic worlds need no simulator."""
+def load_world(
+    task: str | Path | BindingWorld, seed: int, *, gui: bool = False, sim: SimConfig | None = None
+) -> BindingWorld:
+    """A world for `task`, its checks under `sim`; analytic worlds need no simulator."""
     if not isinstance(task, str | Path):
         return task
     name = str(task)
@@ -136,9 +138,9 @@ def load_world(task: str | Path | BindingWorld, seed: int, *, gui: bool = False)
         from planner.search.analytic import analytic_world
 
         return analytic_world(name.removeprefix(ANALYTIC_PREFIX))
-    from planner import sim
+    from planner import sim as simulator
 
-    return sim.load_world(task, seed=seed, gui=gui)
+    return simulator.load_world(task, seed=seed, gui=gui, sim=sim)
 
 
 def seed_everything(seed: int) -> None:
@@ -199,7 +201,7 @@ def run_plan(
 def _plan(request: PlanRequest, progress: Callable[[Progress], None] | None) -> PlanResult:
     seed_everything(request.seed)
     started = time.perf_counter()
-    world = load_world(request.task, request.seed, gui=request.gui)
+    world = load_world(request.task, request.seed, gui=request.gui, sim=request.config.sim)
     try:
         if sampler_registry.uses_knowledge(request.method):
             return _plan_with_knowledge(request, world, started, progress)

@@ -67,6 +67,7 @@ class Execution:
     held: Grasp | None
     tally: CollisionTally = field(default_factory=CollisionTally)
     attempt: int = 0
+    ik_collided_stop: int = 0  # `planner.config.SimConfig.ik_collided_stop`
 
     def draw_seed(self, call: OperatorCall, *inputs: object) -> int:
         """The seed of a randomised check: a function of the run's seed, the check's inputs and
@@ -217,7 +218,12 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         candidates = [grasp] if direction == "top" else [grasp, rolled(grasp)]
     check = ex.checker()
     rng = np.random.default_rng(ex.draw_seed(call, body_pose, candidates[0].direction))
-    options = dict(restarts=s.ik_restarts, iterations=s.ik_iterations, tolerance=s.ik_tolerance)
+    options = dict(
+        restarts=s.ik_restarts,
+        iterations=s.ik_iterations,
+        tolerance=s.ik_tolerance,
+        collided_stop=ex.ik_collided_stop,
+    )
     tried: list[IkResult] = []
     for grasp in candidates:
         target = tcp_target(grasp, body_pose)

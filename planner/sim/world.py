@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 from client.models import Value
+from planner.config import SimConfig
 from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp
 from planner.sim.motion import CollisionTally
@@ -31,10 +32,14 @@ class SimState:
 
 
 class PyBulletWorld:
-    """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`."""
+    """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`; its
+    checks under the run's `sim` policies."""
 
-    def __init__(self, task: Task, *, seed: int, gui: bool = False) -> None:
+    def __init__(
+        self, task: Task, *, seed: int, gui: bool = False, sim: SimConfig | None = None
+    ) -> None:
         self.task = task
+        self.sim = sim if sim is not None else SimConfig()
         self.name = task.name
         self.seed = int(seed)
         self.skeleton: Skeleton = build_skeleton(task)
@@ -104,6 +109,7 @@ class PyBulletWorld:
             values=dict(state.values),
             arm=state.arm,
             held=state.held,
+            ik_collided_stop=self.sim.ik_collided_stop,
         )
         checks: list[CheckResult] = []
         for call in layers[index].calls:
