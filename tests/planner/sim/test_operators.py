@@ -8,6 +8,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+from planner.config import SimConfig
 from planner.sim import PyBulletWorld, load_world
 from planner.sim.grasps import IkResult, make_grasp, solve_ik, tcp_target, total_penetration
 from planner.sim.operators import (
@@ -15,6 +16,7 @@ from planner.sim.operators import (
     IK_COLLIDES,
     IK_OUT_OF_REACH,
     Execution,
+    first_guess,
     ik_progress,
 )
 from planner.skeleton import OperatorCall
@@ -101,3 +103,33 @@ def test_a_randomised_check_draws_afresh_per_attempt_and_per_branch() -> None:
     assert seed({"#dir1": "front"}) == first  # a function of its inputs: reproducible
     assert seed({"#dir1": "front"}, attempt=1) != first
     assert seed({"#dir1": "front", "#pose12": [0.5, 0.5, 0.5]}) != first
+
+
+def test_a_search_that_only_collides_stops_at_the_collided_stop(desk: PyBulletWorld) -> None:
+    """`sim.ik_collided_stop`: restarts that reached the pose in collision end the search
+    early; off (0), every restart runs."""
+    scene = desk.scene
+    body_pose = scene.named_pose("pose0", "body")
+    target = tcp_target(make_grasp(scene, "body", "top", body_pose), body_pose)
+
+    def always_hits(q: tuple[float, ...]) -> list[tuple[str, float]]:
+        return [("wall", 0.01)]
+
+    def solve(stop: int) -> IkResult:
+        rng = np.random.default_rng(3)
+        options = dict(restarts=8, iterations=100, tolerance=1e-3, collided_stop=stop)
+        guess = first_guess(scene, target)
+        return solve_ik(scene, target, rng, collisions=always_hits, first_guess=guess, **options)  # type: ignore[arg-type]
+
+    thorough, early = solve(0), solve(2)
+    assert thorough.q is None and thorough.restarts == 8 and thorough.in_collision > 2
+    assert early.q is None and early.in_collision == 2 and early.restarts < 8
+    assert early.least_depth == pytest.approx(0.01)
+
+
+def test_the_world_checks_under_the_runs_sim_policies() -> None:
+    world = load_world("deskP", seed=0, sim=SimConfig(ik_collided_stop=3))
+    try:
+        assert world.sim.ik_collided_stop == 3
+    finally:
+        world.close()
