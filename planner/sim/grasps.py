@@ -216,6 +216,6 @@ def solve_ik(
         least_depth = min(least_depth, total_penetration(hits))
         if tally is not None:
             tally.add(hits)
-        if reached == collided_stop:
+        if collided_stop and reached >= collided_stop:
             return IkResult(None, best_pos, best_ang, attempt + 1, reached, least_depth)
     return IkResult(None, best_pos, best_ang, restarts, reached, least_depth)

@@ -109,7 +109,7 @@ class PyBulletWorld:
             values=dict(state.values),
             arm=state.arm,
             held=state.held,
-            ik_collided_stop=self.sim.ik_collided_stop,
+            sim=self.sim,
         )
         checks: list[CheckResult] = []
         for call in layers[index].calls:

@@ -116,10 +116,17 @@ def test_a_search_that_only_collides_stops_at_the_collided_stop(desk: PyBulletWo
         return [("wall", 0.01)]
 
     def solve(stop: int) -> IkResult:
-        rng = np.random.default_rng(3)
-        options = dict(restarts=8, iterations=100, tolerance=1e-3, collided_stop=stop)
-        guess = first_guess(scene, target)
-        return solve_ik(scene, target, rng, collisions=always_hits, first_guess=guess, **options)  # type: ignore[arg-type]
+        return solve_ik(
+            scene,
+            target,
+            np.random.default_rng(3),
+            restarts=8,
+            iterations=100,
+            tolerance=1e-3,
+            first_guess=first_guess(scene, target),
+            collisions=always_hits,
+            collided_stop=stop,
+        )
 
     thorough, early = solve(0), solve(2)
     assert thorough.q is None and thorough.restarts == 8 and thorough.in_collision > 2
