@@ -291,14 +291,11 @@ class SurrogateEngine:
         prior is a distance computation, not a fit: it must not wait behind other knowledge
         bases' fits); one that needs a model goes to the front of the fit queue, since a
         planner is using it now."""
-        merging = entry.merging
-        if not merging.acquire(blocking=False):
-            return entry  # another thread is catching this type up
-        try:
+        # Another thread may be merging this type (the instant lane, woken by the same post):
+        # wait for it, a query's time, rather than answer without the points it is loading.
+        with entry.merging:
             new = load_training_points(self.store, *key, after_point_id=entry.last_point_id)
             entry = self._merge(key, entry, new)
-        finally:
-            merging.release()
         if entry.n_fitted == entry.n_points:
             return entry
         if needs_model(entry.y):
