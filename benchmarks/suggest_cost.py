@@ -136,9 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         "in_process": rows,
     }
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / (
-        "suggest_cost.json" if args.task == "desk" else f"suggest_cost-{args.task}.json"
-    )
+    name = Path(args.task).stem  # a task file is named by its stem
+    path = args.out / ("suggest_cost.json" if name == "desk" else f"suggest_cost-{name}.json")
     path.write_text(json.dumps(result, indent=2) + "\n")
     print(json.dumps(result, indent=2))
     print(f"wrote {path}")

@@ -61,16 +61,15 @@ class AvoidSet:
             [p for p in pending if _agrees(p, fixed)], "pending", drop_invalid=True
         )
 
-    def excluding(self, exclude: Sequence[Mapping[str, Value]]) -> AvoidSet:
-        """This set with `exclude` excluded too; the pending points are not read again (a
-        batch adds its chosen points one at a time)."""
+    def only(self, exclude: Sequence[Mapping[str, Value]]) -> AvoidSet:
+        """A set of just `exclude`, on this set's variables and without its pending points: what
+        a batch's next pick adds. A union's `excluded` is its parts' or-ed, its `nearest` their
+        minimum, so a batch updates its candidates' verdicts rather than recomputing them."""
         self._check_exclude(exclude)
-        wider = copy.copy(self)
-        wider.groups = [
-            *self.groups,
-            *self._groups([p for p in exclude if _agrees(p, self.fixed)], "exclude"),
-        ]
-        return wider
+        part = copy.copy(self)
+        part.groups = self._groups([p for p in exclude if _agrees(p, self.fixed)], "exclude")
+        part.pending_groups = []
+        return part
 
     def _check_exclude(self, exclude: Sequence[Mapping[str, Value]]) -> None:
         for i, point in enumerate(exclude):
@@ -147,11 +146,16 @@ class AvoidSet:
 
     def spread(self, z: np.ndarray) -> np.ndarray:
         """`(n,)` normalised distance from each encoded candidate `(n, D)` to the nearest point
-        to avoid, each group measured on its own variables (0 with none). A continuous
+        to avoid (0 with none): `nearest`, with none counted as 0."""
+        return spread_of(self.nearest(z))
+
+    def nearest(self, z: np.ndarray) -> np.ndarray:
+        """`(n,)` normalised distance from each encoded candidate `(n, D)` to the nearest point
+        to avoid, each group measured on its own variables (inf with none). A continuous
         variable's walls count as mirrors: a candidate's distance to its own image beyond the
-        nearest wall (twice the distance to it) caps its spread. Without them the most spread
-        point is always in a corner of the box, and a node's children pile up on its faces
-        (in yaw, at the two ends of one range) where a space-filling design covers its inside."""
+        nearest wall (twice the distance to it) caps it. Without them the most spread point is
+        always in a corner of the box, and a node's children pile up on its faces (in yaw, at
+        the two ends of one range) where a space-filling design covers its inside."""
         nearest = np.full(len(z), np.inf)
         for group in (*self.groups, *self.pending_groups):
             own = z[:, group.mask]
@@ -160,12 +164,17 @@ class AvoidSet:
                 bounded = own[:, group.walls]
                 wall = np.minimum(bounded, 1.0 - bounded).min(axis=1)
                 nearest = np.minimum(nearest, 2.0 * np.maximum(wall, 0.0) / np.sqrt(own.shape[1]))
-        return np.where(np.isfinite(nearest), nearest, 0.0)
+        return nearest
 
     def pending_distances(self, z: np.ndarray) -> np.ndarray:
         """`(n, k)` normalised distances to the pending points."""
         parts = [_distances(z[:, g.mask], g.z) for g in self.pending_groups]
         return np.hstack(parts) if parts else np.zeros((len(z), 0))
+
+
+def spread_of(nearest: np.ndarray) -> np.ndarray:
+    """`AvoidSet.spread` from `AvoidSet.nearest`: no point to avoid counts as 0."""
+    return np.where(np.isfinite(nearest), nearest, 0.0)
 
 
 def _valid(encoder: SpaceEncoder, point: Mapping[str, Value]) -> bool:

@@ -35,7 +35,7 @@ from pymoo.operators.mutation.pm import PM
 from scipy.stats import qmc
 
 from surrogate.acquisition import Acquisition
-from surrogate.avoid import AvoidSet
+from surrogate.avoid import AvoidSet, spread_of
 from surrogate.config import SurrogateConfig
 from surrogate.domains import CategoricalDomain, Domain, Value
 from surrogate.encoding import Columns, value_column
@@ -196,29 +196,24 @@ class _Scorer:
                 self._known[key] = float(value)
         return np.fromiter((self._known[key] for key in keys), dtype=float, count=len(keys))
 
-    def evaluate(self, genes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """`(n,)` each: the score, the acquisition alone, and the normalised distance to the
-        nearest point to avoid (0 with none)."""
-        raw = self.raw(genes)
-        score, spread = self.explore_terms(raw, self.genome.columns(genes), self.avoid)
-        return score, raw, spread
+    def penalty(self, z: np.ndarray) -> np.ndarray:
+        """`(n,)` the acquisition's penalty near its pending points at encoded candidates `z`
+        (0 with none)."""
+        if not self.avoid.has_pending:
+            return np.zeros(len(z))
+        return self.acquisition.pending.penalty_at(self.avoid.pending_distances(z))
 
-    def explore_terms(
-        self, raw: np.ndarray, cols: Columns, avoid: AvoidSet
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The score of candidates whose acquisition is `raw`, and their spread, against `avoid`."""
-        if avoid.empty:
-            return raw, np.zeros(len(raw))
-        z = avoid.encoder.encode(cols)
-        spread = avoid.spread(z)
-        score = raw + self.config.explore * np.minimum(spread, 1.0)
-        if avoid.has_pending:
-            score = score - self.acquisition.pending.penalty_at(avoid.pending_distances(z))
-        return score, spread
+    def score(self, raw: np.ndarray, spread: np.ndarray, penalty: np.ndarray) -> np.ndarray:
+        """`(n,)` the score of candidates of acquisition `raw`, `spread` and pending `penalty`."""
+        return raw + self.config.explore * np.minimum(spread, 1.0) - penalty
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         """`(n,)` the score NSGA-II maximises."""
-        return self.evaluate(genes)[0]
+        raw = self.raw(genes)
+        if self.avoid.empty:
+            return raw
+        z = self.avoid.encoder.encode(self.genome.columns(genes))
+        return self.score(raw, self.avoid.spread(z), self.penalty(z))
 
 
 def _split(
@@ -295,15 +290,20 @@ def maximize_batch(
         hinted = np.zeros(len(genes), dtype=bool)
     cols = genome.columns(genes)
     raw = scorer.raw(genes)
+    z = avoid.encoder.encode(cols)
+    nearest, penalty = avoid.nearest(z), scorer.penalty(z)
+    ok = ~avoid.excluded(cols)
     keys = [name for name in free if distinct is None or name in distinct] or list(free)
     found: list[Suggestion] = []
     while len(found) < n:
-        if found:
-            avoid = avoid.excluding([{k: found[-1].x[k] for k in keys}])
-        ok = ~avoid.excluded(cols)
+        if found:  # the pick joins the excluded points: only its own verdicts are new
+            picked = avoid.only([{k: found[-1].x[k] for k in keys}])
+            ok &= ~picked.excluded(cols)
+            nearest = np.minimum(nearest, picked.nearest(z))
         if not ok.any():
             break
-        score, spread = scorer.explore_terms(raw, cols, avoid)
+        spread = spread_of(nearest)
+        score = scorer.score(raw, spread, penalty)
         prefer = hinted if not found else None
         best = _select(ok, score, raw, spread, config.margin, config.margin_abs, prefer)
         x = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}

@@ -1,4 +1,4 @@
-"""The points a suggestion keeps away from: widening a set by more excluded points."""
+"""The points a suggestion keeps away from: a set and the points a batch adds to it."""
 
 from __future__ import annotations
 
@@ -27,17 +27,27 @@ def candidates() -> dict[str, np.ndarray]:
     return SpaceEncoder(SPACE).columns(points)
 
 
-def test_excluding_more_points_equals_a_set_built_with_them() -> None:
+def test_a_set_and_its_added_points_together_equal_a_set_built_with_them() -> None:
+    """A batch's picks join its excluded points through `only`: or-ed verdicts and the minimum
+    distance of the two parts are those of one set built with every point."""
     base = AvoidSet(SPACE, {}, EXCLUDE, PENDING)
-    wider = base.excluding(MORE)
+    more = base.only(MORE)
     built = AvoidSet(SPACE, {}, EXCLUDE + MORE, PENDING)
     cols = candidates()
-    z = wider.encoder.encode(cols)
-    np.testing.assert_array_equal(wider.excluded(cols), built.excluded(cols))
-    np.testing.assert_allclose(wider.spread(z), built.spread(z), atol=1e-7)
-    np.testing.assert_allclose(wider.pending_distances(z), built.pending_distances(z))
-    assert wider.excluded(cols)[:2].all()
-    assert not base.excluded(cols)[1]
+    z = base.encoder.encode(cols)
+    np.testing.assert_array_equal(base.excluded(cols) | more.excluded(cols), built.excluded(cols))
+    both = np.minimum(base.nearest(z), more.nearest(z))
+    np.testing.assert_allclose(both, built.nearest(z), atol=1e-7)
+    np.testing.assert_array_equal(more.pending_distances(z), np.zeros((len(z), 0)))
+    assert more.excluded(cols)[1] and not base.excluded(cols)[1]
+    assert built.excluded(cols)[:2].all()
+
+
+def test_no_point_to_avoid_is_no_spread() -> None:
+    avoid = AvoidSet(SPACE, {}, [], [])
+    z = avoid.encoder.encode(candidates())
+    assert np.isinf(avoid.nearest(z)).all()
+    np.testing.assert_array_equal(avoid.spread(z), np.zeros(len(z)))
 
 
 def test_invalid_pending_points_are_left_out_and_the_rest_kept() -> None:
