@@ -52,6 +52,10 @@ class Settings(BaseSettings):
     # Disabled, the service stores and serves points only (suggest / predict answer 503).
     surrogate_enabled: bool = True
     surrogate_fit_process: bool = True
+    # How far below the priority it was started with the service runs (its fits, mostly): on a
+    # machine it shares with planners (the embedded service of `cpkb plan` and `cpkb bench`)
+    # they take the cores first and the fits the cycles left; alone on a machine, no change.
+    surrogate_nice: int = Field(default=5, ge=0, le=19)
     surrogate_max_inducing: int = Field(default=SurrogateConfig.max_inducing, ge=8, le=1024)
     # A fit trains on at most this many of a type's points (0: all); see SurrogateConfig.
     surrogate_max_fit_points: int = Field(default=SurrogateConfig.max_fit_points, ge=0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 from typing import Any
 
@@ -162,6 +163,8 @@ def _serve(args: argparse.Namespace) -> int:
         store = _open_store(settings.database_url)
         _prepare(store, settings.database_url)
         store.dispose()
+        if settings.surrogate_nice > 0 and hasattr(os, "nice"):
+            os.nice(settings.surrogate_nice)  # the fit worker, started later, inherits it
 
         import uvicorn
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
@@ -12,7 +13,7 @@ from cli_support import cpkb_in_process
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
-from cpkb.embedded import free_port
+from cpkb.embedded import free_port, stop_process, wait_ready
 
 
 def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -94,6 +95,25 @@ def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Pat
     assert f"cannot listen on 127.0.0.1:{port}" in out.stderr and "in use" in out.stderr
     assert "serving" not in out.stdout
     assert not db.exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "nice"), reason="no process priorities on this platform")
+@pytest.mark.parametrize("nice", [None, "0", "3"])
+def test_serve_runs_below_the_priority_it_was_started_with(tmp_path: Path, nice: str | None):
+    """Planners sharing the machine come first (CPKB_SURROGATE_NICE, 5 unless set)."""
+    env = {k: v for k, v in os.environ.items() if k != "CPKB_SURROGATE_NICE"}
+    if nice is not None:
+        env["CPKB_SURROGATE_NICE"] = nice
+    port = free_port()
+    command = [sys.executable, "-m", "cpkb", "serve", "--port", str(port)]
+    command += ["--db", f"sqlite:///{tmp_path / 'kb.db'}"]
+    server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    try:
+        assert wait_ready(f"http://127.0.0.1:{port}", server, timeout=180)
+        below = os.getpriority(os.PRIO_PROCESS, server.pid) - os.getpriority(os.PRIO_PROCESS, 0)
+    finally:
+        stop_process(server)
+    assert below == min(int(nice if nice is not None else 5), 19 - os.nice(0))
 
 
 @pytest.mark.slow
