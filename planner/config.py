@@ -147,6 +147,11 @@ class CpBoConfig:
     batch_max_age: int = 8
     """Rollouts after which a node's batch (or a continuation) is asked for anew, to follow
     the refits."""
+    outlook_max_age: int = 8
+    """Rollouts after which reading a node's outlook (the tree's look at its best untried value,
+    `SearchConfig.outlook_widening`) asks for its batch anew; younger, the batch's best is read
+    as it stands. A read is asked far more often than a value is taken, and a request is a
+    guided rollout's largest cost after the simulation."""
     lookahead: bool = True
     """A decision's suggestion also weighs the types on later decisions (optimised jointly);
     the paper's rule constrains a decision only by types on it and earlier ones."""
@@ -168,7 +173,9 @@ class CpBoConfig:
     bounded, at the price of that share of guided values. 0: never (the paper)."""
 
     def __post_init__(self) -> None:
-        _at_least(self, batch=1, batch_max_age=0, explore_below=0.0, random_every=0)
+        _at_least(
+            self, batch=1, batch_max_age=0, outlook_max_age=0, explore_below=0.0, random_every=0
+        )
 
 
 @dataclass(frozen=True)

@@ -97,18 +97,19 @@ class CpBoSampler:
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
         """The next point of this node's batch, left in it: the best untried value the
         knowledge base knows of, for the price of a look."""
-        batch = self._batch(ctx)
+        batch = self._batch(ctx, self.config.outlook_max_age)
         return batch.proposals[0] if batch is not None and batch.proposals else None
 
     def chain(self) -> dict[str, Value] | None:
         return self.knowledge.next_chain()
 
-    def _batch(self, ctx: SampleContext) -> _Batch | None:
+    def _batch(self, ctx: SampleContext, max_age: int | None = None) -> _Batch | None:
         """This node's batch without the points since tried; asked anew when it is used up,
-        older than `batch_max_age` rollouts, or the node's constraints changed (a type became
-        active here or on the later decisions it looks ahead to: a batch that kept its points
-        when only a later type was new would go on ignoring that type; BENCHMARKS.md has the
-        measurement). None where no type is active or the service cannot answer."""
+        older than `max_age` rollouts (`batch_max_age` by default), or the node's constraints
+        changed (a type became active here or on the later decisions it looks ahead to: a batch
+        that kept its points when only a later type was new would go on ignoring that type;
+        BENCHMARKS.md has the measurement). None where no type is active or the service cannot
+        answer."""
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if not constraints:
             return None
@@ -123,7 +124,8 @@ class CpBoSampler:
             cached is None
             or cached.constraints != signature
             or not cached.proposals
-            or ctx.rollout - cached.rollout > self.config.batch_max_age
+            or ctx.rollout - cached.rollout
+            > (self.config.batch_max_age if max_age is None else max_age)
         ):
             cached = self._ask(ctx, constraints, signature)
             if cached is None:

@@ -111,6 +111,37 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
 
 
 @pytest.mark.slow
+def test_an_outlook_younger_than_its_own_age_limit_is_read_without_asking(live_kb):
+    """With `outlook_max_age` above `batch_max_age`, a look at an aged batch reads its best as
+    it stands; taking a value from that batch asks anew, and so does a look past the limit."""
+    import numpy as np
+
+    from planner.config import CpBoConfig
+    from planner.search.samplers.base import SampleContext
+    from planner.search.samplers.cp_bo import CpBoSampler
+
+    config = CpBoConfig(batch_max_age=8, outlook_max_age=32)
+    with CpkbClient(live_kb.url) as client:
+        world, session = stocked_desk_session(client, live_kb.name)
+        sampler = CpBoSampler(session, config)
+        grasp = world.skeleton.decisions[0]
+        rng = np.random.default_rng(0)
+
+        def at(rollout: int) -> SampleContext:
+            return SampleContext(grasp, {}, ("front",), (), (), 0, rollout, rng)
+
+        first = sampler.propose_untried(at(1))
+        assert first is not None and session.stats.suggestions == 1
+        assert sampler.propose_untried(at(1 + 20)) == first
+        assert session.stats.suggestions == 1
+        sampler.propose(at(1 + 20))
+        assert session.stats.suggestions == 2
+        sampler.propose_untried(at(1 + 20 + 33))
+        assert session.stats.suggestions == 3
+        session.close()
+
+
+@pytest.mark.slow
 def test_a_fresh_child_takes_its_first_value_from_the_parents_continuation(live_kb):
     """The grasp's suggestion looks ahead to the placement: the placement node under a
     suggested grasp expands first with the placement that answer chose, for no request; its
