@@ -147,7 +147,7 @@ class CpBoConfig:
     batch_max_age: int = 8
     """Rollouts after which a node's batch (or a continuation) is asked for anew, to follow
     the refits."""
-    outlook_max_age: int = 8
+    outlook_max_age: int = 32
     """Rollouts after which reading a node's outlook (the tree's look at its best untried value,
     `SearchConfig.outlook_widening`) asks for its batch anew; younger, the batch's best is read
     as it stands. A read is asked far more often than a value is taken, and a request is a

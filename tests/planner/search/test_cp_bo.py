@@ -83,7 +83,7 @@ def test_a_node_expands_from_one_batch_and_asks_again_when_it_is_used_up(live_kb
     from planner.search.samplers.base import Proposal, SampleContext
     from planner.search.samplers.cp_bo import CpBoSampler
 
-    batch, max_age = CpBoConfig().batch, CpBoConfig().batch_max_age
+    batch, max_age = CpBoConfig().batch, CpBoConfig().outlook_max_age
 
     with CpkbClient(live_kb.url) as client:
         world, session = stocked_desk_session(client, live_kb.name)
@@ -317,6 +317,7 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
     assert paper.config["cp_bo"] == {
         "batch": 1,
         "batch_max_age": extended.config["cp_bo"]["batch_max_age"],
+        "outlook_max_age": extended.config["cp_bo"]["outlook_max_age"],  # no outlook is read
         "lookahead": False,
         "continuations": False,
         "prematch": False,
