@@ -71,7 +71,7 @@ class CpBoSampler:
             left = [c for c in domain.choices if c not in ctx.siblings]
             if len(left) == 1:
                 return left[0]
-        batch = self._batch(ctx)
+        batch = self._batch(ctx, self.config.batch_max_age)
         if batch is not None and batch.proposals:
             best = batch.proposals[0]
             if self._explores(ctx, best):
@@ -103,13 +103,13 @@ class CpBoSampler:
     def chain(self) -> dict[str, Value] | None:
         return self.knowledge.next_chain()
 
-    def _batch(self, ctx: SampleContext, max_age: int | None = None) -> _Batch | None:
+    def _batch(self, ctx: SampleContext, max_age: int) -> _Batch | None:
         """This node's batch without the points since tried; asked anew when it is used up,
-        older than `max_age` rollouts (`batch_max_age` by default), or the node's constraints
-        changed (a type became active here or on the later decisions it looks ahead to: a batch
-        that kept its points when only a later type was new would go on ignoring that type;
-        BENCHMARKS.md has the measurement). None where no type is active or the service cannot
-        answer."""
+        older than `max_age` rollouts (`batch_max_age` for a value taken, `outlook_max_age` for
+        a look), or the node's constraints changed (a type became active here or on the later
+        decisions it looks ahead to: a batch that kept its points when only a later type was new
+        would go on ignoring that type; BENCHMARKS.md has the measurement). None where no type
+        is active or the service cannot answer."""
         constraints = self.knowledge.constraints_at(ctx.var.var, ctx.path)
         if not constraints:
             return None
@@ -124,8 +124,7 @@ class CpBoSampler:
             cached is None
             or cached.constraints != signature
             or not cached.proposals
-            or ctx.rollout - cached.rollout
-            > (self.config.batch_max_age if max_age is None else max_age)
+            or ctx.rollout - cached.rollout > max_age
         ):
             cached = self._ask(ctx, constraints, signature)
             if cached is None:
