@@ -129,7 +129,11 @@ class ContinuousDomain(_Strict):
 
     `relative_only` marks such a pose whose own columns (where it lies in the frame, its heading
     there) are not model inputs in a type that also holds another pose of its frame: the type
-    sees only their relative pose, as a collision between two placed bodies depends on it."""
+    sees only their relative pose, as a collision between two placed bodies depends on it.
+
+    `periodic` marks such a pose's heading as the angle it is: `low` and `high` are one heading,
+    and the surrogate sees the heading on a circle, so that two headings a few degrees either
+    side of the seam are near, not a whole range apart."""
 
     kind: Literal["continuous"] = "continuous"
     low: list[Number] = Field(min_length=1, max_length=MAX_DIM)
@@ -138,8 +142,9 @@ class ContinuousDomain(_Strict):
     heading: int | None = Field(default=None, ge=0, le=2)
     scale: list[Number] | None = Field(default=None, min_length=2, max_length=2)
     relative_only: bool | None = None  # None (off) stays out of the type's canonical form
+    periodic: bool | None = None  # as relative_only
 
-    @field_validator("relative_only")
+    @field_validator("relative_only", "periodic")
     @classmethod
     def _off_is_none(cls, value: bool | None) -> bool | None:
         return True if value else None
@@ -161,6 +166,8 @@ class ContinuousDomain(_Strict):
                 raise ValueError("scale must be two finite half extents >= 0 (metres)")
         if self.relative_only and self.heading is None:
             raise ValueError("relative_only needs a heading (a framed planar pose)")
+        if self.periodic and self.heading is None:
+            raise ValueError("periodic needs a heading (a framed planar pose)")
         return self
 
 

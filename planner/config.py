@@ -246,6 +246,10 @@ class KnowledgeConfig:
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
     development suite's pack tasks it took more rollouts."""
+    periodic_headings: bool = False
+    """A placement's heading is encoded on a circle (`surrogate.encoding`): the two ends of its
+    seed's range are one heading, which the paper's encoding, a plain column, puts furthest
+    apart, so that an acquisition's argmax took both ends for unexplored places."""
     relative_pairs: bool = True
     """In a type holding two placements of one region (a box placed beside another), the
     model's inputs are their relative pose alone, not where each lies in the region as well
@@ -438,6 +442,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.grasp_symmetry": False,
             "knowledge.metric_frames": False,
             "knowledge.relative_pairs": False,
+            "knowledge.periodic_headings": False,
             "knowledge.body_sizes": False,
             "knowledge.movable_names": True,
             "knowledge.size_inputs": False,

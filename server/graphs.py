@@ -205,12 +205,12 @@ def _check_isomorphic(type_id: str, new_json: str, stored_json: str) -> None:
 
 
 def _same_values(new: Domain | None, stored: Domain | None) -> bool:
-    """Equal domains, but for a continuous `frame`, `heading` and `scale` and a categorical
-    `embedding`: they say how the surrogate encodes the values, not which values there are, and
-    a type stored with other ones (or before they existed) keeps its own encoding rather than
-    refusing the planners that now send them."""
+    """Equal domains, but for a continuous `frame`, `heading`, `scale` and `periodic` and a
+    categorical `embedding`: they say how the surrogate encodes the values, not which values
+    there are, and a type stored with other ones (or before they existed) keeps its own encoding
+    rather than refusing the planners that now send them."""
     if isinstance(new, ContinuousDomain) and isinstance(stored, ContinuousDomain):
-        unframed = {"frame": None, "heading": None, "scale": None}
+        unframed = {"frame": None, "heading": None, "scale": None, "periodic": None}
         return new.model_copy(update=unframed) == stored.model_copy(update=unframed)
     if isinstance(new, CategoricalDomain) and isinstance(stored, CategoricalDomain):
         return new.choices == stored.choices

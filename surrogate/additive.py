@@ -50,7 +50,7 @@ def term_groups(encoder: SpaceEncoder, mode: AdditiveMode | str) -> Groups:
         for var in encoder.vars
         if var.in_z and (mode == "decisions" or isinstance(var.domain, CategoricalDomain))
     ]
-    return tuple(tuple(range(var.start, var.start + var.width)) for var in chosen)
+    return tuple(tuple(range(var.start, var.start + var.z_width)) for var in chosen)
 
 
 def additive_cov(x: np.ndarray, z: np.ndarray, terms: tuple[AdditiveTerm, ...]) -> np.ndarray:

@@ -53,7 +53,8 @@ class AvoidSet:
         self.walls = walls
         self.fixed = dict(fixed)
         self.encoder = SpaceEncoder(free, separations=False)
-        self.blocks = {v.name: np.arange(v.start, v.start + v.width) for v in self.encoder.vars}
+        self.blocks = {v.name: np.arange(v.start, v.start + v.z_width) for v in self.encoder.vars}
+        self._walls = {v.name: v.walls() & walls for v in self.encoder.vars}
         self._encoders: dict[tuple[str, ...], SpaceEncoder] = {}
         self._check_exclude(exclude)
         self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
@@ -107,15 +108,7 @@ class AvoidSet:
                     continue
                 cols = sub.columns(members, where=where)
             mask = np.concatenate([self.blocks[name] for name in names])
-            walls = np.concatenate(
-                [
-                    np.full(
-                        len(self.blocks[name]),
-                        self.walls and not isinstance(self.free[name], CategoricalDomain),
-                    )
-                    for name in names
-                ]
-            )
+            walls = np.concatenate([self._walls[name] for name in names])
             groups.append(_Group(names, cols, sub.encode(cols), mask, walls))
         return groups
 

@@ -35,8 +35,8 @@ class ContinuousDomain:
     """A box `low..high`; `frame` names the space the values are positions in, `heading` the
     index of a planar pose's heading dimension, `scale` the half extents in metres that the
     position dimensions span about the frame's centre, `relative_only` that the pose's own
-    columns are left out where its relative pose to another of its frame is encoded (see
-    `surrogate.encoding`)."""
+    columns are left out where its relative pose to another of its frame is encoded, `periodic`
+    that the heading is encoded on a circle (see `surrogate.encoding`)."""
 
     low: tuple[float, ...]
     high: tuple[float, ...]
@@ -44,6 +44,7 @@ class ContinuousDomain:
     heading: int | None = None
     scale: tuple[float, float] | None = None
     relative_only: bool = False
+    periodic: bool = False
     kind: str = "continuous"
 
 
@@ -66,11 +67,20 @@ def continuous(
     heading: int | None = None,
     scale: list[float] | tuple[float, ...] | None = None,
     relative_only: bool = False,
+    periodic: bool = False,
 ) -> ContinuousDomain:
     """A continuous domain from lists."""
+    if periodic and heading is None:
+        raise ValueError("periodic needs a heading dimension")
     half = None if scale is None else (float(scale[0]), float(scale[1]))
     return ContinuousDomain(
-        tuple(map(float, low)), tuple(map(float, high)), frame, heading, half, bool(relative_only)
+        tuple(map(float, low)),
+        tuple(map(float, high)),
+        frame,
+        heading,
+        half,
+        bool(relative_only),
+        bool(periodic),
     )
 
 
@@ -88,6 +98,7 @@ def domain_from_json(obj: Mapping[str, Any]) -> Domain:
                 obj.get("heading"),
                 obj.get("scale"),
                 bool(obj.get("relative_only")),
+                bool(obj.get("periodic")),
             )
     except (KeyError, TypeError, ValueError) as exc:
         raise DomainError(f"not a domain: {exc}") from exc
@@ -110,6 +121,8 @@ def domain_to_json(domain: Domain) -> dict[str, Any]:
         out["scale"] = list(domain.scale)
     if domain.relative_only:
         out["relative_only"] = True
+    if domain.periodic:
+        out["periodic"] = True
     return out
 
 

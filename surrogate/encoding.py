@@ -28,6 +28,12 @@ one region, so offsets in seed units would turn with the heading wrongly. The me
 are divided by twice the pair's larger reach, which for a square frame and equal bodies gives
 the same numbers as seed units; a pair without both scales keeps the seed-unit encoding.
 
+A pose whose domain is `periodic` has its heading encoded on a circle, two columns
+`0.5 + cos / 2 pi` and `0.5 + sin / 2 pi` in place of one: the two ends of a heading range are
+one heading, which a column would put a whole unit apart, so that a model took the headings
+either side of the seam for different places and an acquisition's argmax went to both ends as
+unexplored. The radius keeps a small turn as far as in the one column.
+
 A pose whose domain is `relative_only` and that forms such a pair has no columns of its own: the
 type's inputs are the relative pose alone. Where a predecessor placed the first box always on one
 side, a model on the absolute places learns "the second box fits on the other side"; a model on
@@ -74,12 +80,49 @@ class _Var:
     start: int  # first column of this variable in Z; -1 for a relative-only pose (none)
     width: int
     table: np.ndarray | None = None  # categorical: (k, width) rows used for the choices
+    circle: int | None = None  # a periodic heading's dimension, encoded on a circle
+
+    @property
+    def z_width(self) -> int:
+        """Columns the variable takes in Z (a heading on a circle takes two)."""
+        return self.width + (self.circle is not None)
+
+    def to_z(self, unit: np.ndarray) -> np.ndarray:
+        """`(n, z_width)` from values scaled to [0, 1] `(n, width)`: a circle's heading becomes
+        its cosine column in place and its sine column last."""
+        if self.circle is None:
+            return unit
+        theta = 2 * math.pi * unit[:, self.circle]
+        z = np.empty((len(unit), self.z_width))
+        z[:, : self.width] = unit
+        z[:, self.circle] = 0.5 + np.cos(theta) * CIRCLE_RADIUS
+        z[:, self.width] = 0.5 + np.sin(theta) * CIRCLE_RADIUS
+        return z
+
+    def from_z(self, block: np.ndarray) -> np.ndarray:
+        """The inverse of `to_z`: values scaled to [0, 1] `(n, width)`."""
+        unit = np.clip(block[:, : self.width], 0.0, 1.0)
+        if self.circle is not None:
+            theta = np.arctan2(block[:, self.width] - 0.5, block[:, self.circle] - 0.5)
+            unit[:, self.circle] = np.mod(theta / (2 * math.pi), 1.0)
+        return unit
+
+    def walls(self) -> np.ndarray:
+        """`(z_width,)` which columns are bounded by the domain's walls (a circle has none)."""
+        bounded = np.full(self.z_width, self.table is None)
+        if self.circle is not None:
+            bounded[[self.circle, self.width]] = False
+        return bounded
 
     @property
     def in_z(self) -> bool:
         """Whether the variable has columns of its own (a relative-only pose is seen only
         through its relative poses)."""
         return self.start >= 0
+
+
+CIRCLE_RADIUS = 1.0 / (2 * math.pi)
+"""A periodic heading's circle in Z: a small turn moves as far as in a plain [0, 1] column."""
 
 
 def _categorical_table(domain: CategoricalDomain) -> np.ndarray:
@@ -104,7 +147,8 @@ class SpaceEncoder:
                 table = _categorical_table(domain)
                 laid_out.append(_Var(name, domain, -1, table.shape[1], table))
             else:
-                laid_out.append(_Var(name, domain, -1, len(domain.low)))
+                circle = domain.heading if domain.periodic else None
+                laid_out.append(_Var(name, domain, -1, len(domain.low), circle=circle))
         pairs = _framed_pairs(laid_out) if separations else []
         relative = {
             v.name
@@ -120,7 +164,7 @@ class SpaceEncoder:
                 self.vars.append(var)
                 continue
             self.vars.append(dataclasses.replace(var, start=start))
-            start += var.width
+            start += var.z_width
         by_name = {v.name: v for v in self.vars}
         self.base_dim = start  # the variables' own columns; the separations follow them
         self.separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
@@ -166,7 +210,7 @@ class SpaceEncoder:
                 unit = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (high - low)
             units[var.name] = np.broadcast_to(unit, (n, var.width))
             if var.in_z:
-                z[:, var.start : var.start + var.width] = units[var.name]
+                z[:, var.start : var.start + var.z_width] = var.to_z(units[var.name])
         start = self.base_dim
         for a, b in self.separations:
             za, zb = units[a.name], units[b.name]
@@ -186,14 +230,14 @@ class SpaceEncoder:
             raise ValueError("relative-only poses cannot be decoded: their columns are not in Z")
         cols: Columns = {}
         for var in self.vars:
-            block = z[:, var.start : var.start + var.width]
+            block = z[:, var.start : var.start + var.z_width]
             if var.table is not None:
                 d2 = ((block[:, None, :] - var.table[None, :, :]) ** 2).sum(-1)
                 cols[var.name] = d2.argmin(axis=1)
             else:
                 low = np.asarray(var.domain.low)
                 high = np.asarray(var.domain.high)
-                cols[var.name] = low + np.clip(block, 0.0, 1.0) * (high - low)
+                cols[var.name] = low + var.from_z(block) * (high - low)
         return cols
 
     def encode_points(self, points: Sequence[Mapping[str, Value]]) -> np.ndarray:

@@ -29,6 +29,8 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
 - A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
   the relative pose of two placements is measured in metres (`surrogate.encoding`); with
   `relative_pairs`, a type holding two placements of one region sees only that relative pose.
+- A placement's heading is an angle: with `periodic_headings` its model sees it on a circle,
+  where the two ends of the seed's range are one heading (`surrogate.encoding`).
 - A movable body's vertex can be labelled with its size to the millimetre (`body_sizes`), so
   that a type is about one object, not about whatever another task calls by the same name: a
   task that reuses `body` for a box of other dimensions meets other constraints, and its
@@ -89,6 +91,7 @@ class Encodings:
     grasp_symmetry: bool = True
     metric_frames: bool = True
     relative_pairs: bool = False
+    periodic_headings: bool = False
     body_sizes: bool = False
     size_inputs: bool = False
     movable_names: bool = True
@@ -244,6 +247,8 @@ def encoded_domains(
                 update["scale"] = list(extents)
             if encodings.relative_pairs:
                 update["relative_only"] = True
+            if encodings.periodic_headings:
+                update["periodic"] = True
             domain = domain.model_copy(update=update)
         out[var] = domain
     return out

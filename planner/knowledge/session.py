@@ -168,6 +168,7 @@ class KnowledgeSession:
             grasp_symmetry=self.config.grasp_symmetry,
             metric_frames=self.config.metric_frames,
             relative_pairs=self.config.relative_pairs,
+            periodic_headings=self.config.periodic_headings,
             body_sizes=self.config.body_sizes,
             size_inputs=self.config.size_inputs,
             movable_names=self.config.movable_names,

@@ -200,18 +200,23 @@ def _page(table: TableQuery) -> dict[str, int]:
 
 def dim_lengthscales(space: dict[str, Any], lengthscales: list[float] | None) -> dict[str, float]:
     """The fitted lengthscale of each continuous dimension (`#pose[1]` -> 0.3), read from the
-    encoder's columns; empty without a fit or when the fit's columns do not match."""
+    encoder's columns (a heading on a circle: the shorter of its two); empty without a fit or
+    when the fit's columns do not match."""
     if not lengthscales:
         return {}
     encoder = SpaceEncoder(space_from_json({k: d.model_dump() for k, d in space.items()}))
     if len(lengthscales) != encoder.dim:
         return {}
-    return {
-        f"{var.name}[{i}]": float(lengthscales[var.start + i])
-        for var in encoder.vars
-        if var.table is None
-        for i in range(var.width)
-    }
+    out = {}
+    for var in encoder.vars:
+        if var.table is not None or not var.in_z:
+            continue
+        for i in range(var.width):
+            columns = [var.start + i]
+            if i == var.circle:  # the heading's cosine column and its sine column, last
+                columns.append(var.start + var.width)
+            out[f"{var.name}[{i}]"] = float(min(lengthscales[c] for c in columns))
+    return out
 
 
 def choose_dims(

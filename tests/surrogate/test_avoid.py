@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from surrogate.avoid import AvoidSet
-from surrogate.domains import CategoricalDomain, ContinuousDomain
+from surrogate.domains import CategoricalDomain, ContinuousDomain, continuous
 from surrogate.encoding import SpaceEncoder
 
 SPACE = {
@@ -64,3 +64,17 @@ def test_invalid_pending_points_are_left_out_and_the_rest_kept() -> None:
     clean = AvoidSet(SPACE, {}, EXCLUDE, [*PENDING, {"pose": [0.3, 0.3]}])
     z = avoid.encoder.encode(candidates())
     np.testing.assert_allclose(avoid.pending_distances(z), clean.pending_distances(z))
+
+
+def test_a_periodic_heading_has_no_walls_and_is_near_across_its_seam() -> None:
+    """A candidate just across the seam from a point to avoid is near it, and nothing caps its
+    distance at the heading's ends: a heading has no walls."""
+    pose = continuous([0.0, 0.0, -np.pi], [1.0, 1.0, np.pi], "shelf", 2, None, False, True)
+    avoid = AvoidSet({"p": pose}, {}, [{"p": [0.5, 0.5, np.pi - 0.05]}], [])
+    z = avoid.encoder.encode(avoid.encoder.columns([{"p": [0.5, 0.5, -np.pi + 0.05]}]))
+    assert avoid.nearest(z)[0] < 0.02
+    far = AvoidSet({"p": pose}, {}, [{"p": [0.5, 0.5, 0.0]}], [])
+    z = far.encoder.encode(far.encoder.columns([{"p": [0.5, 0.5, -np.pi + 0.01]}]))
+    plain = AvoidSet({"p": continuous([0.0, 0.0, -np.pi], [1.0, 1.0, np.pi])}, {}, [], [])
+    assert far.nearest(z)[0] > 0.1
+    assert plain.encoder.dim == 3 and far.encoder.dim == 4

@@ -292,3 +292,55 @@ def test_relative_only_survives_the_wire_and_off_leaves_the_contract_as_it_was()
     assert not domain_from_json(off.model_dump()).relative_only
     with pytest.raises(ValidationError, match="relative_only needs a heading"):
         WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", relative_only=True)
+
+
+def periodic_pose(periodic: bool = True) -> ContinuousDomain:
+    return continuous([0.0, 0.0, -np.pi], [1.0, 1.0, np.pi], "shelf", 2, None, False, periodic)
+
+
+def test_a_periodic_heading_is_near_across_the_seam_and_as_near_as_before_elsewhere() -> None:
+    """The two ends of the heading range are one heading: on a circle they encode a small turn
+    apart, where the plain column puts them furthest apart; away from the seam a small turn
+    moves about as far as in the plain column."""
+    circle = SpaceEncoder({"p": periodic_pose()})
+    plain = SpaceEncoder({"p": periodic_pose(periodic=False)})
+    assert circle.dim == 4 and plain.dim == 3
+    seam = [{"p": [0.3, 0.6, -np.pi + 0.05]}, {"p": [0.3, 0.6, np.pi - 0.05]}]
+    inside = [{"p": [0.3, 0.6, 0.4]}, {"p": [0.3, 0.6, 0.5]}]
+
+    def apart(encoder: SpaceEncoder, points: list[dict]) -> float:
+        z = encoder.encode_points(points)
+        assert z.min() >= 0.0 and z.max() <= 1.0
+        return float(np.linalg.norm(z[0] - z[1]))
+
+    assert apart(circle, seam) == pytest.approx(0.1 / (2 * np.pi), rel=1e-3)
+    assert apart(plain, seam) > 0.95
+    assert apart(circle, inside) == pytest.approx(apart(plain, inside), rel=1e-3)
+
+
+def test_a_periodic_heading_decodes_back_to_its_value() -> None:
+    encoder = SpaceEncoder({"dir": CategoricalDomain(choices=DIRS), "p": periodic_pose()})
+    rng = np.random.default_rng(3)
+    points = [
+        {"dir": DIRS[i % 5], "p": [rng.random(), rng.random(), rng.uniform(-np.pi, np.pi)]}
+        for i in range(30)
+    ]
+    back = encoder.points(encoder.decode(encoder.encode_points(points)))
+    for original, decoded in zip(points, back, strict=True):
+        assert decoded["dir"] == original["dir"]
+        np.testing.assert_allclose(decoded["p"], original["p"], atol=1e-9)
+
+
+def test_periodic_survives_the_wire_needs_a_heading_and_off_leaves_the_contract() -> None:
+    from client.models import ContinuousDomain as WireDomain
+
+    wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", heading=2, periodic=True)
+    domain = domain_from_json(wire.model_dump())
+    assert domain.periodic
+    assert WireDomain.model_validate(domain_to_json(domain)) == wire
+    off = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", heading=2, periodic=False)
+    assert "periodic" not in off.model_dump(exclude_none=True)  # type ids stay as they were
+    with pytest.raises(ValidationError, match="periodic needs a heading"):
+        WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", periodic=True)
+    with pytest.raises(ValueError, match="periodic needs a heading"):
+        continuous([0.0] * 3, [1.0] * 3, "shelf", None, None, False, True)

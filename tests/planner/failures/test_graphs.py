@@ -365,3 +365,17 @@ def test_with_relative_pairs_a_placement_is_marked_relative_only():
     assert marked.relative_only and marked.scale == [0.21, 0.07]
     assert pose_of(Encodings(geometry, relative_pairs=True, metric_frames=False)).relative_only
     assert pose_of(Encodings(geometry)).relative_only is None
+
+
+def test_with_periodic_headings_a_placement_is_marked_periodic():
+    """The switch marks every framed planar pose; off, the declared domain is kept, so the
+    paper's types keep their ids."""
+    skeleton = regrasp_skeleton(pose=pose_domain("region2"))
+    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
+
+    def pose_of(encodings: Encodings):
+        graph = failure_graph(skeleton, 3, shelf_ik, encodings=encodings).graph
+        return next(n.domain for n in graph.nodes if n.label == "#pose")
+
+    assert pose_of(Encodings(periodic_headings=True)).periodic
+    assert pose_of(Encodings()).periodic is None
