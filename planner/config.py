@@ -246,10 +246,12 @@ class KnowledgeConfig:
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
     development suite's pack tasks it took more rollouts."""
-    periodic_headings: bool = False
+    periodic_headings: bool = True
     """A placement's heading is encoded on a circle (`surrogate.encoding`): the two ends of its
     seed's range are one heading, which the paper's encoding, a plain column, puts furthest
-    apart, so that an acquisition's argmax took both ends for unexplored places."""
+    apart, so that an acquisition's argmax took both ends for unexplored places. On: on the
+    development suites plain cp-bo took fewer rollouts with it and transfer no more
+    (BENCHMARKS.md, `dev-periodic`)."""
     relative_pairs: bool = True
     """In a type holding two placements of one region (a box placed beside another), the
     model's inputs are their relative pose alone, not where each lies in the region as well

@@ -112,6 +112,7 @@ def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
             "search.pw_k": 7,
             "search.restart_unit": 16,
             "knowledge.relative_pairs": True,
+            "knowledge.periodic_headings": True,
         }
     )
     paper = method_config("cp-bo-paper", asked)
@@ -122,7 +123,7 @@ def test_the_paper_preset_is_cp_bo_with_every_extension_off_whatever_was_set():
     assert search.restart_unit == 0
     knowledge = paper.knowledge
     assert not (knowledge.square_grasps or knowledge.grasp_symmetry or knowledge.metric_frames)
-    assert not knowledge.relative_pairs
+    assert not (knowledge.relative_pairs or knowledge.periodic_headings)
     assert search.pw_k == 7.0  # a knob the paper does not fix stays the caller's
     assert method_config("cp-bo", asked) == asked
     assert PlanRequest("analytic:desk", "cp-bo-paper", 0).config == method_config("cp-bo-paper")

@@ -328,6 +328,8 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
     assert not (search["outlook_widening"] or search["outlook_selection"])
     assert not (search["hopeless_widening"] or search["restart_redraws"])
     assert paper.config["knowledge"]["movable_names"]  # the paper's graphs name their bodies
+    assert extended.config["knowledge"]["periodic_headings"]
+    assert not paper.config["knowledge"]["periodic_headings"]  # a heading is a plain column
 
 
 @pytest.mark.slow
