@@ -280,18 +280,20 @@ def test_a_relative_only_pair_is_seen_through_its_relative_pose_alone() -> None:
         encoder.decode(z)
 
 
-def test_relative_only_survives_the_wire_and_off_leaves_the_contract_as_it_was() -> None:
+@pytest.mark.parametrize("flag", ["relative_only", "periodic"])
+def test_a_pose_flag_survives_the_wire_needs_a_heading_and_off_leaves_the_contract(flag) -> None:
     from client.models import ContinuousDomain as WireDomain
 
-    wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, relative_only=True)
+    pose = {"low": [0.0] * 3, "high": [1.0] * 3, "frame": "tray"}
+    wire = WireDomain(**pose, heading=2, **{flag: True})
     domain = domain_from_json(wire.model_dump())
-    assert domain.relative_only
+    assert getattr(domain, flag)
     assert WireDomain.model_validate(domain_to_json(domain)) == wire
-    off = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, relative_only=False)
-    assert "relative_only" not in off.model_dump(exclude_none=True)  # type ids stay as they were
-    assert not domain_from_json(off.model_dump()).relative_only
-    with pytest.raises(ValidationError, match="relative_only needs a heading"):
-        WireDomain(low=[0.0, 0.0], high=[1.0, 1.0], frame="tray", relative_only=True)
+    off = WireDomain(**pose, heading=2, **{flag: False})
+    assert flag not in off.model_dump(exclude_none=True)  # type ids stay as they were
+    assert not getattr(domain_from_json(off.model_dump()), flag)
+    with pytest.raises(ValidationError, match=f"{flag} needs a heading"):
+        WireDomain(**pose, **{flag: True})
 
 
 def periodic_pose(periodic: bool = True) -> ContinuousDomain:
@@ -331,16 +333,6 @@ def test_a_periodic_heading_decodes_back_to_its_value() -> None:
         np.testing.assert_allclose(decoded["p"], original["p"], atol=1e-9)
 
 
-def test_periodic_survives_the_wire_needs_a_heading_and_off_leaves_the_contract() -> None:
-    from client.models import ContinuousDomain as WireDomain
-
-    wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", heading=2, periodic=True)
-    domain = domain_from_json(wire.model_dump())
-    assert domain.periodic
-    assert WireDomain.model_validate(domain_to_json(domain)) == wire
-    off = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", heading=2, periodic=False)
-    assert "periodic" not in off.model_dump(exclude_none=True)  # type ids stay as they were
-    with pytest.raises(ValidationError, match="periodic needs a heading"):
-        WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="shelf", periodic=True)
+def test_the_surrogate_refuses_a_periodic_pose_without_a_heading() -> None:
     with pytest.raises(ValueError, match="periodic needs a heading"):
         continuous([0.0] * 3, [1.0] * 3, "shelf", None, None, False, True)
