@@ -50,7 +50,6 @@ class AvoidSet:
     ) -> None:
         """`walls`: whether `spread` counts the continuous variables' walls as mirrors."""
         self.free = dict(free)
-        self.walls = walls
         self.fixed = dict(fixed)
         self.encoder = SpaceEncoder(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.z_width) for v in self.encoder.vars}
