@@ -88,6 +88,12 @@ class SearchConfig:
     """Count the failures through a child of a continuous decision too (a box placed where the
     next ones keep failing), not only through a categorical choice; off: such a child's outlook
     is the model's view below it, which an unfitted type leaves near its prior."""
+    outlook_exhausted: bool = False
+    """A child whose node below has tried every choice (a grasp node under a placement) is
+    rated by the best outlook of that node's open children, failures counted, not by the last
+    proposal it made: a placement under which only a grasp that cannot be placed is left looks
+    as bad as it is, so selection leaves it and widening opens another. Off: such a node's
+    outlook stays what it was when its last choice was opened (the paper has no outlook)."""
 
     restart_unit: int = 64
     """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):
@@ -438,6 +444,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.hopeless_widening": False,
             "search.leave_hopeless": False,
             "search.hopeless_choices": False,
+            "search.outlook_exhausted": False,
             "search.restart_unit": 0,
             "search.restart_redraws": False,
             "knowledge.square_grasps": False,

@@ -283,7 +283,10 @@ class PWUCT:
         if not self.config.outlook_widening:
             return None
         best = comparable_outlook(
-            node, self.config.outlook_prior_weight, self.config.outlook_continuous_failures
+            node,
+            self.config.outlook_prior_weight,
+            self.config.outlook_continuous_failures,
+            exhausted=self.config.outlook_exhausted,
         )
         if best is None:
             return None

@@ -191,13 +191,23 @@ def widens(node: DecisionNode, k: float) -> bool:
 
 
 def child_outlook(
-    child: ChildNode, prior_weight: float, continuous_failures: bool = False
+    child: ChildNode,
+    prior_weight: float,
+    continuous_failures: bool = False,
+    *,
+    exhausted: bool = False,
 ) -> float | None:
     """The knowledge base's view below `child` after the failures through it (see
     `SearchConfig.outlook_prior_weight`); None if it has not rated the node below. The child
     of a continuous decision keeps the model's view unless `continuous_failures`
-    (`SearchConfig.outlook_continuous_failures`)."""
-    p = child.next.last_p_feasible if child.next is not None else None
+    (`SearchConfig.outlook_continuous_failures`). With `exhausted`
+    (`SearchConfig.outlook_exhausted`), the view below a categorical node that has tried
+    every choice is the best outlook of its open children, not its last proposal's."""
+    below = child.next
+    p = below.last_p_feasible if below is not None else None
+    if exhausted and below is not None and below.all_tried:
+        inner = outlook(below, prior_weight, continuous_failures, exhausted=True)
+        p = inner if inner is not None else p
     if p is None or (child.parent.n_choices is None and not continuous_failures):
         return p
     failures = 0 if child.success else child.visits
@@ -205,7 +215,11 @@ def child_outlook(
 
 
 def outlook(
-    node: DecisionNode, prior_weight: float, continuous_failures: bool = False
+    node: DecisionNode,
+    prior_weight: float,
+    continuous_failures: bool = False,
+    *,
+    exhausted: bool = False,
 ) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
@@ -213,7 +227,7 @@ def outlook(
     for child in node.children:
         if child.closed:
             continue
-        p = child_outlook(child, prior_weight, continuous_failures)
+        p = child_outlook(child, prior_weight, continuous_failures, exhausted=exhausted)
         if p is None:
             return None
         best = p if best is None else max(best, p)
@@ -221,11 +235,17 @@ def outlook(
 
 
 def comparable_outlook(
-    node: DecisionNode, prior_weight: float, continuous_failures: bool = False
+    node: DecisionNode,
+    prior_weight: float,
+    continuous_failures: bool = False,
+    *,
+    exhausted: bool = False,
 ) -> float | None:
     """The outlook an untried value of `node` is compared with: None unless untried values are
     left and every open child is rated."""
-    return None if node.all_tried else outlook(node, prior_weight, continuous_failures)
+    if node.all_tried:
+        return None
+    return outlook(node, prior_weight, continuous_failures, exhausted=exhausted)
 
 
 def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
@@ -241,15 +261,15 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     log_n = math.log(max(node.visits, 1))
     weight, ratio = config.outlook_prior_weight, config.outlook_ratio
     guided = config.outlook_selection and node.visits % config.outlook_free_every != 0
-    continuous = config.outlook_continuous_failures
-    best_outlook = outlook(node, weight, continuous) if guided else None
+    continuous, exhausted = config.outlook_continuous_failures, config.outlook_exhausted
+    best_outlook = outlook(node, weight, continuous, exhausted=exhausted) if guided else None
     leave = config.leave_hopeless and config.hopeless_widening and node.n_hopeless > 0
     hopeful = leave and any(not c.closed and not _hopeless_below(c) for c in node.children)
     for child in node.children:
         if child.closed or (hopeful and _hopeless_below(child)):
             continue
         if best_outlook is not None:
-            rated = child_outlook(child, weight, continuous)
+            rated = child_outlook(child, weight, continuous, exhausted=exhausted)
             assert rated is not None
             if rated * ratio < best_outlook:
                 continue
