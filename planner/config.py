@@ -90,10 +90,11 @@ class SearchConfig:
     is the model's view below it, which an unfitted type leaves near its prior."""
     outlook_exhausted: bool = False
     """A child whose node below has tried every choice (a grasp node under a placement) is
-    rated by the best outlook of that node's open children, failures counted, not by the last
-    proposal it made: a placement under which only a grasp that cannot be placed is left looks
-    as bad as it is, so selection leaves it and widening opens another. Off: such a node's
-    outlook stays what it was when its last choice was opened (the paper has no outlook)."""
+    rated by the current view of that node's open children (the latest proposals below them),
+    not by the last proposal the node made before it ran out of choices: a placement under
+    which only a grasp the knowledge base rates as hopeless is left open looks as bad as it
+    is, so selection leaves it and widening opens another. Off: such a node's view stays what
+    it was when its last choice was opened (the paper has no outlook)."""
 
     restart_unit: int = 64
     """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):

@@ -201,17 +201,28 @@ def child_outlook(
     `SearchConfig.outlook_prior_weight`); None if it has not rated the node below. The child
     of a continuous decision keeps the model's view unless `continuous_failures`
     (`SearchConfig.outlook_continuous_failures`). With `exhausted`
-    (`SearchConfig.outlook_exhausted`), the view below a categorical node that has tried
-    every choice is the best outlook of its open children, not its last proposal's."""
+    (`SearchConfig.outlook_exhausted`), the view below is `current_view`'s."""
     below = child.next
-    p = below.last_p_feasible if below is not None else None
-    if exhausted and below is not None and below.all_tried:
-        inner = outlook(below, prior_weight, continuous_failures, exhausted=True)
-        p = inner if inner is not None else p
+    p = None if below is None else current_view(below) if exhausted else below.last_p_feasible
     if p is None or (child.parent.n_choices is None and not continuous_failures):
         return p
     failures = 0 if child.success else child.visits
     return prior_weight * p / (prior_weight + failures)
+
+
+def current_view(node: DecisionNode) -> float | None:
+    """The knowledge base's latest view of what is still open at `node`: its last proposal's,
+    or, once a categorical node has tried every choice (it proposes no more), the best of its
+    open children's current views, which their later proposals keep up to date; the last
+    proposal's while one of them has not been rated."""
+    if not node.all_tried:
+        return node.last_p_feasible
+    views = [
+        current_view(c.next) if c.next is not None else None for c in node.children if not c.closed
+    ]
+    if not views or any(v is None for v in views):
+        return node.last_p_feasible
+    return max(views)  # type: ignore[type-var]
 
 
 def outlook(

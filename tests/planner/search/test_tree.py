@@ -20,6 +20,7 @@ from planner.search.tree import (
     child_outlook,
     close,
     comparable_outlook,
+    current_view,
     mark_hopeless,
     note_choices,
     note_proposal,
@@ -347,8 +348,8 @@ def test_counting_a_placement_s_failures_lets_selection_leave_it():
 
 def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones():
     """With `outlook_exhausted`, a placement under which every grasp has been tried, and only
-    one that keeps failing one layer deeper is left open, is rated by that grasp's outlook:
-    selection leaves it for a sibling placement, although both last proposed alike."""
+    one whose placements the knowledge base rates as hopeless is left open, is rated by that
+    view: selection leaves it for a sibling placement, although both last proposed alike."""
     placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
     stuck = add_child(placements, [0.5], visits=20, r=0.075)
     other = add_child(placements, [0.1], visits=2, r=0.05)
@@ -364,12 +365,14 @@ def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones():
     placements.visits = 23  # not a free visit (outlook_free_every)
     on = replace(CONFIG, outlook_exhausted=True, ucb_c=0.0)
     assert child_outlook(stuck, W) == 0.4
-    assert child_outlook(stuck, W, exhausted=True) == pytest.approx(W * 0.05 / (W + 19))
+    assert child_outlook(stuck, W, exhausted=True) == 0.05  # a placement's: failures not counted
     assert ucb_select(placements, replace(on, outlook_exhausted=False)) is stuck
     assert ucb_select(placements, on) is other
     open_top = add_child(other.next, "top")  # choices left: the proposal's view stands
     note_proposal(open_top.next, 0.05, CONFIG)
     assert child_outlook(other, W, exhausted=True) == 0.4
+    unrated = add_child(grasps, "side")  # a retried choice, its node not rated yet
+    assert current_view(grasps) == 0.4 and unrated.next.last_p_feasible is None
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
