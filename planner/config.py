@@ -38,6 +38,7 @@ def _at_least(config: object, **bounds: float) -> None:
 
 
 RESTART_SCHEDULES = ("luby", "geometric")
+OUTLOOK_EXHAUSTED = ("off", "view", "counted")
 STORED_HINTS_PREFER = ("all", "whole", "none")
 
 
@@ -88,13 +89,14 @@ class SearchConfig:
     """Count the failures through a child of a continuous decision too (a box placed where the
     next ones keep failing), not only through a categorical choice; off: such a child's outlook
     is the model's view below it, which an unfitted type leaves near its prior."""
-    outlook_exhausted: bool = False
-    """A child whose node below has tried every choice (a grasp node under a placement) is
-    rated by the current view of that node's open children (the latest proposals below them),
-    not by the last proposal the node made before it ran out of choices: a placement under
-    which only a grasp the knowledge base rates as hopeless is left open looks as bad as it
-    is, so selection leaves it and widening opens another. Off: such a node's view stays what
-    it was when its last choice was opened (the paper has no outlook)."""
+    outlook_exhausted: str = "off"
+    """How a child is rated whose node below has tried every choice (a grasp node under a
+    placement), which proposes no more: `view`, by the current view of that node's open
+    children (the latest proposals below them); `counted`, by that view counted against the
+    failures through each of them, as a choice's outlook is (`outlook_prior_weight`). Either
+    way a placement under which only a grasp that cannot be placed is left open looks as bad
+    as it is, so selection leaves it and widening opens another. `off`: by the last proposal
+    the node made before it ran out of choices (the paper has no outlook)."""
 
     restart_unit: int = 64
     """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):
@@ -125,6 +127,11 @@ class SearchConfig:
     of clutter is unlucky never solves its task. 0: a failed choice is closed for good."""
 
     def __post_init__(self) -> None:
+        if self.outlook_exhausted not in OUTLOOK_EXHAUSTED:
+            raise ConfigError(
+                f"search.outlook_exhausted is one of {', '.join(OUTLOOK_EXHAUSTED)},"
+                f" not {self.outlook_exhausted!r}"
+            )
         if self.restart_schedule not in RESTART_SCHEDULES:
             raise ConfigError(
                 f"search.restart_schedule is one of {', '.join(RESTART_SCHEDULES)},"
@@ -445,7 +452,7 @@ PRESETS: Mapping[str, Preset] = {
             "search.hopeless_widening": False,
             "search.leave_hopeless": False,
             "search.hopeless_choices": False,
-            "search.outlook_exhausted": False,
+            "search.outlook_exhausted": "off",
             "search.restart_unit": 0,
             "search.restart_redraws": False,
             "knowledge.square_grasps": False,

@@ -195,34 +195,47 @@ def child_outlook(
     prior_weight: float,
     continuous_failures: bool = False,
     *,
-    exhausted: bool = False,
+    exhausted: str = "off",
 ) -> float | None:
     """The knowledge base's view below `child` after the failures through it (see
     `SearchConfig.outlook_prior_weight`); None if it has not rated the node below. The child
     of a continuous decision keeps the model's view unless `continuous_failures`
-    (`SearchConfig.outlook_continuous_failures`). With `exhausted`
-    (`SearchConfig.outlook_exhausted`), the view below is `current_view`'s."""
+    (`SearchConfig.outlook_continuous_failures`). `exhausted`
+    (`SearchConfig.outlook_exhausted`): how a node below that has tried every choice is
+    viewed (`current_view`)."""
     below = child.next
-    p = None if below is None else current_view(below) if exhausted else below.last_p_feasible
+    if below is None:
+        return None
+    counted = prior_weight if exhausted == "counted" else None
+    p = below.last_p_feasible if exhausted == "off" else current_view(below, counted)
     if p is None or (child.parent.n_choices is None and not continuous_failures):
         return p
+    return _counted(p, child, prior_weight)
+
+
+def _counted(p: float, child: ChildNode, prior_weight: float) -> float:
+    """`p` as a Beta prior worth `prior_weight` rollouts, after the failures through `child`."""
     failures = 0 if child.success else child.visits
     return prior_weight * p / (prior_weight + failures)
 
 
-def current_view(node: DecisionNode) -> float | None:
+def current_view(node: DecisionNode, counted: float | None = None) -> float | None:
     """The knowledge base's latest view of what is still open at `node`: its last proposal's,
     or, once a categorical node has tried every choice (it proposes no more), the best of its
-    open children's current views, which their later proposals keep up to date; the last
-    proposal's while one of them has not been rated."""
+    open children's current views, which their later proposals keep up to date, each counted
+    against the failures through it with prior weight `counted` if given; the last proposal's
+    while one of them has not been rated."""
     if not node.all_tried:
         return node.last_p_feasible
-    views = [
-        current_view(c.next) if c.next is not None else None for c in node.children if not c.closed
-    ]
-    if not views or any(v is None for v in views):
-        return node.last_p_feasible
-    return max(views)  # type: ignore[type-var]
+    views: list[float] = []
+    for child in node.children:
+        if child.closed:
+            continue
+        view = current_view(child.next, counted) if child.next is not None else None
+        if view is None:
+            return node.last_p_feasible
+        views.append(view if counted is None else _counted(view, child, counted))
+    return max(views) if views else node.last_p_feasible
 
 
 def outlook(
@@ -230,7 +243,7 @@ def outlook(
     prior_weight: float,
     continuous_failures: bool = False,
     *,
-    exhausted: bool = False,
+    exhausted: str = "off",
 ) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
@@ -250,7 +263,7 @@ def comparable_outlook(
     prior_weight: float,
     continuous_failures: bool = False,
     *,
-    exhausted: bool = False,
+    exhausted: str = "off",
 ) -> float | None:
     """The outlook an untried value of `node` is compared with: None unless untried values are
     left and every open child is rated."""

@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from client.models import CategoricalDomain, ContinuousDomain
-from planner.config import SearchConfig
+from planner.config import ConfigError, SearchConfig
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_feasible
 from planner.search.samplers.base import Proposal
@@ -346,10 +346,12 @@ def test_counting_a_placement_s_failures_lets_selection_leave_it():
     assert ucb_select(placements, counting) is other
 
 
-def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones():
+@pytest.mark.parametrize("rule", ["view", "counted"])
+def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones(rule):
     """With `outlook_exhausted`, a placement under which every grasp has been tried, and only
     one whose placements the knowledge base rates as hopeless is left open, is rated by that
-    view: selection leaves it for a sibling placement, although both last proposed alike."""
+    view (counted against the grasp's failures with `counted`): selection leaves it for a
+    sibling placement, although both last proposed alike."""
     placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
     stuck = add_child(placements, [0.5], visits=20, r=0.075)
     other = add_child(placements, [0.1], visits=2, r=0.05)
@@ -363,16 +365,22 @@ def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones():
     note_proposal(top.next, 0.05, CONFIG)  # no placement follows `top`
     note_proposal(other.next, 0.4, CONFIG)
     placements.visits = 23  # not a free visit (outlook_free_every)
-    on = replace(CONFIG, outlook_exhausted=True, ucb_c=0.0)
+    on = replace(CONFIG, outlook_exhausted=rule, ucb_c=0.0)
+    view = 0.05 if rule == "view" else W * 0.05 / (W + 19)
     assert child_outlook(stuck, W) == 0.4
-    assert child_outlook(stuck, W, exhausted=True) == 0.05  # a placement's: failures not counted
-    assert ucb_select(placements, replace(on, outlook_exhausted=False)) is stuck
+    assert child_outlook(stuck, W, exhausted=rule) == pytest.approx(view)
+    assert ucb_select(placements, replace(on, outlook_exhausted="off")) is stuck
     assert ucb_select(placements, on) is other
     open_top = add_child(other.next, "top")  # choices left: the proposal's view stands
     note_proposal(open_top.next, 0.05, CONFIG)
-    assert child_outlook(other, W, exhausted=True) == 0.4
+    assert child_outlook(other, W, exhausted=rule) == 0.4
     unrated = add_child(grasps, "side")  # a retried choice, its node not rated yet
     assert current_view(grasps) == 0.4 and unrated.next.last_p_feasible is None
+
+
+def test_outlook_exhausted_is_one_of_its_rules():
+    with pytest.raises(ConfigError, match="outlook_exhausted"):
+        SearchConfig(outlook_exhausted="yes")
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
