@@ -257,9 +257,9 @@ class KnowledgeConfig:
     """A grasp holding any box being placed is encoded with opposite faces alike (front and
     back, right and left): the placing hand's pose is the same and the box, turned half a turn,
     occupies the same footprint, so what one face taught about a region holds for the other
-    (`planner.failures.graphs`). On: on two development suites both cp-bo and transfer took
-    fewer rollouts with it, regrasp most (BENCHMARKS.md, `dev-symmetry`); the paper encodes the
-    grasp as declared."""
+    (`planner.failures.graphs`). On: on the development suite both cp-bo and transfer took
+    fewer rollouts with it, regrasp most, and on a retired held-out draw no more
+    (BENCHMARKS.md, `dev-symmetry`); the paper encodes the grasp as declared."""
     metric_frames: bool = False
     """A placement's relative pose to another in its region is measured in metres, from the
     region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
