@@ -19,7 +19,10 @@ from pathlib import Path
 
 import httpx
 
-START_TIMEOUT_S = 180.0  # generous: a start on a loaded machine (torch import) can take a minute
+# A safety net against a service that hangs, not a measure of a slow start: the wait ends as
+# soon as the service answers or exits, and a niced service starting among busy processes
+# (its torch import) can take minutes; given up on earlier, it is killed mid-import.
+START_TIMEOUT_S = 900.0
 STOP_TIMEOUT_S = 10.0
 
 

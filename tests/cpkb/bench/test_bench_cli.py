@@ -48,7 +48,7 @@ def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
         "--max-rollouts", "300", "--out", str(out), "--quiet",
     ]  # fmt: skip
     first = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    assert first.returncode == 0, first.stderr
+    assert first.returncode == 0, first.stdout + first.stderr
     assert "2 runs finished, 0 already done, 0 failed, 0 left" in first.stdout
     runs = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
     assert sorted((r["method"], r["seed"]) for r in runs) == [
@@ -63,7 +63,7 @@ def test_a_small_real_bench_runs_resumes_and_reports(tmp_path: Path) -> None:
     assert "| analytic:desk | cp-bo-transfer | 1 |" in (out / "summary.md").read_text()
 
     again = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    assert again.returncode == 0, again.stderr
+    assert again.returncode == 0, again.stdout + again.stderr
     assert "0 runs finished, 2 already done" in again.stdout
     summary = subprocess.run(
         [*command[:4], "--tasks", "analytic:desk", "--out", str(out), "--summary-only"],

@@ -56,7 +56,7 @@ def test_cpkb_bench_runs_cp_bo_paper_with_set_knobs(tmp_path: Path) -> None:
         "--max-rollouts", "300", "--out", str(out), "--quiet", "--set", "search.pw_k=10",
     ]  # fmt: skip
     done = subprocess.run(command, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 0, done.stdout + done.stderr
     runs = {r["method"]: r for r in _runs(out)}
     assert set(runs) == {"cp-bo-paper", "cp-bo"} and all(r["solved"] for r in runs.values())
     paper, extended = runs["cp-bo-paper"]["config"], runs["cp-bo"]["config"]

@@ -76,7 +76,7 @@ def test_cpkb_bench_runs_variants_beside_plain_methods(tmp_path: Path) -> None:
         "--max-rollouts", "300", "--out", str(out), "--quiet", "--variants", str(variants),
     ]  # fmt: skip
     done = subprocess.run(command, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 0, done.stdout + done.stderr
     runs = {(r["method"], r["seed"]): r for r in _runs(out)}
     assert set(runs) == {(m, s) for m in ("quasi-random", "few-candidates") for s in (0, 1)}
     for seed in (0, 1):

@@ -110,7 +110,7 @@ def local_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int]
         pytest.skip(NO_RAY)
     out = tmp_path_factory.mktemp("local") / "out"
     done = _bench(out, "--workers", "2")
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 0, done.stdout + done.stderr
     return _runs(out)
 
 
@@ -120,7 +120,7 @@ def test_ray_runs_match_the_local_pool_and_resume(
 ) -> None:
     out = tmp_path / "out"
     first = _bench(out, "--ray", ray_head)
-    assert first.returncode == 0, first.stderr
+    assert first.returncode == 0, first.stdout + first.stderr
     assert "2 runs finished, 0 already done, 0 failed, 0 left" in first.stdout
     runs = _runs(out)
     assert set(runs) == set(local_runs)
@@ -134,7 +134,7 @@ def test_ray_runs_match_the_local_pool_and_resume(
         assert (out / name).stat().st_size > 0
 
     again = _bench(out, "--ray", ray_head)
-    assert again.returncode == 0, again.stderr
+    assert again.returncode == 0, again.stdout + again.stderr
     assert "0 runs finished, 2 already done" in again.stdout
     assert len((out / "runs.jsonl").read_text().splitlines()) == 2
 
@@ -146,7 +146,7 @@ def test_ray_runs_use_a_shared_service_and_leave_it_clean(
     db = tmp_path / "shared.db"
     with embedded_service(f"sqlite:///{db}") as url:
         done = _bench(tmp_path / "out", "--ray", ray_head, "--kb-url", url)
-        assert done.returncode == 0, done.stderr
+        assert done.returncode == 0, done.stdout + done.stderr
         with CpkbClient(url) as client:
             assert [kb.name for kb in client.list_kbs()] == ["default"]
     runs = _runs(tmp_path / "out")
