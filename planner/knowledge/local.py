@@ -133,6 +133,7 @@ class _Model:
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
     base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
+    prior_counts: float = 0.0  # `KnowledgeConfig.prior_counts`
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
@@ -161,7 +162,9 @@ class _Model:
         self, feasible: list[dict[str, Value]], infeasible: list[dict[str, Value]]
     ) -> PriorPredictor:
         prior = PriorPredictor(*_encoded(self.space, feasible, infeasible))
-        return prior.with_base_rate() if self.base_rate else prior
+        if self.base_rate:
+            prior = prior.with_base_rate()
+        return prior.counted(self.prior_counts) if self.prior_counts > 0 else prior
 
     def model(self) -> FeasibilityPredictor:
         """The fetched predictor with this planner's points since weighed in; for a type this
@@ -178,6 +181,9 @@ class _Model:
         fitted = self.fitted
         if self.base_rate:
             fitted = with_base_rate(fitted, len(feasible), len(infeasible))
+        if self.prior_counts > 0 and (prior := stated_prior(fitted)) is not None:
+            # Counted, the points since the service's prior are more of its points.
+            return prior.counted(self.prior_counts, *_encoded(self.space, feasible, infeasible))
         if not feasible and not infeasible:
             return fitted
         return RecentPoints(fitted, *_encoded(self.space, feasible, infeasible))
@@ -238,6 +244,18 @@ def with_base_rate(
     return predictor
 
 
+def stated_prior(predictor: FeasibilityPredictor) -> PriorPredictor | None:
+    """The stated prior a served predictor is, its points since included (the service's
+    `RecentPoints` on a prior); None for a fit."""
+    if isinstance(predictor, PriorPredictor):
+        return predictor
+    if isinstance(predictor, RecentPoints) and isinstance(predictor.base, PriorPredictor):
+        return predictor.base.counted(
+            predictor.base.strength, predictor.feasible, predictor.infeasible
+        )
+    return None
+
+
 @dataclass(frozen=True)
 class _Fetch:
     """A refresh under way: its answer, the types asked for, and when it was asked."""
@@ -258,6 +276,7 @@ class LocalSurrogates:
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
         pending_clock: Callable[[], float] = time.monotonic,
         prior_base_rate: bool = KnowledgeConfig.prior_base_rate,
+        prior_counts: float = KnowledgeConfig.prior_counts,
         spread_walls: bool = KnowledgeConfig.spread_walls,
         model_evidence: bool = KnowledgeConfig.model_evidence,
         model_evidence_prior: float = KnowledgeConfig.model_evidence_prior,
@@ -267,6 +286,7 @@ class LocalSurrogates:
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
         self.prior_base_rate = prior_base_rate
+        self.prior_counts = prior_counts
         self.model_evidence = model_evidence
         self.model_evidence_prior = model_evidence_prior
         self._models: dict[str, _Model] = {}
@@ -310,6 +330,7 @@ class LocalSurrogates:
                 fetched_at=0,
                 born_with=stored_with,
                 base_rate=self.prior_base_rate,
+                prior_counts=self.prior_counts,
                 evidence=self._evidence(None),
             )
         return True
@@ -477,6 +498,7 @@ class LocalSurrogates:
                 own=own,
                 others=others,
                 base_rate=self.prior_base_rate,
+                prior_counts=self.prior_counts,
                 evidence=self._evidence(previous),
             )
         for type_id in type_ids:

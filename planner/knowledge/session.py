@@ -187,6 +187,7 @@ class KnowledgeSession:
                 background=background,
                 refresh_rollouts=self.config.refresh_rollouts,
                 prior_base_rate=self.config.prior_base_rate,
+                prior_counts=self.config.prior_counts,
                 spread_walls=self.config.spread_walls,
                 model_evidence=self.config.model_evidence,
                 model_evidence_prior=self.config.model_evidence_prior,

@@ -103,6 +103,27 @@ def test_a_prior_centred_on_its_base_rate_falls_as_failures_accumulate() -> None
     assert mixed.proba(z[:1])[0] > 0.8 > mixed.proba(far)[0]
 
 
+def test_a_counted_prior_grows_surer_with_each_point_where_the_nearest_one_saturates() -> None:
+    """`strength` s > 0: a Beta prior of s pseudo-points updated by kernel-weighted counts, so a
+    choice that failed once is rated 1/3 (s = 2) and one that failed five times 1/7, where the
+    nearest-point form rates both alike; far from every point it stays at the centre, and
+    points joined by `counted` count as the prior's own."""
+    once = np.array([[0.0, 0.0]])
+    often = np.zeros((5, 2))
+    none = np.zeros((0, 2))
+    nearest_once, nearest_often = PriorPredictor(none, once), PriorPredictor(none, often)
+    assert nearest_once.proba(once)[0] == pytest.approx(nearest_often.proba(once)[0])
+    counted_once, counted_often = nearest_once.counted(2.0), nearest_often.counted(2.0)
+    assert counted_once.proba(once)[0] == pytest.approx(1 / 3, abs=1e-9)
+    assert counted_often.proba(once)[0] == pytest.approx(1 / 7, abs=1e-9)
+    far = np.array([[5.0, 5.0]])
+    assert counted_often.proba(far)[0] == pytest.approx(0.5)
+    assert counted_often.with_base_rate().proba(far)[0] == pytest.approx(1 / 7)
+    joined = counted_once.counted(2.0, feasible=once, infeasible=np.zeros((4, 2)))
+    assert len(joined.feasible) == 1 and len(joined.infeasible) == 5
+    assert joined.proba(once)[0] == pytest.approx(2 / 8, abs=1e-9)
+
+
 @pytest.mark.slow
 def test_imbalanced_classes_still_find_the_small_feasible_region() -> None:
     rng = np.random.default_rng(7)

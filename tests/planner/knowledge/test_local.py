@@ -115,6 +115,32 @@ def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(bas
     assert float(model.predictor().proba(far)[0]) == pytest.approx(expected, abs=1e-6)
 
 
+@pytest.mark.parametrize("counts", [0.0, 2.0])
+def test_a_stated_prior_counts_this_planners_failures_only_when_asked(counts):
+    """`knowledge.prior_counts`: a fetched stated prior takes this planner's own points since
+    as more of its points, so a place that failed again is rated lower each time; off, the
+    nearest-point form stops falling after the first of this planner's failures there."""
+    memory = _memory()
+    space = {"#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}}
+    memory.add("failing", space_from_json(space), [({"#pose": [0.2, 0.2]}, False)])
+    local = LocalSurrogates(fetch_from(memory, OPTIMIZER), background=False, prior_counts=counts)
+    local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
+    model = local._models["failing"]
+    there = SpaceEncoder(model.space).encode_points([{"#pose": [0.2, 0.2]}])
+    once = float(model.predictor().proba(there)[0])
+    for _ in range(2):
+        local.note("failing", {"#pose": [0.2, 0.2]}, feasible=False, batch=1)
+    thrice = float(model.predictor().proba(there)[0])
+    for _ in range(3):
+        local.note("failing", {"#pose": [0.2, 0.2]}, feasible=False, batch=1)
+    six = float(model.predictor().proba(there)[0])
+    if counts:
+        assert once == pytest.approx(1 / 3, abs=1e-6) and thrice == pytest.approx(1 / 5, abs=1e-6)
+        assert six == pytest.approx(1 / 8, abs=1e-6)
+    else:
+        assert once == pytest.approx(0.05, abs=1e-6) and six == pytest.approx(thrice, abs=1e-9)
+
+
 @pytest.mark.parametrize("walls", [False, True])
 def test_the_planners_spread_rule_holds_over_the_services_settings(walls):
     """`knowledge.spread_walls` decides the local maximiser's spread, whatever optimiser
