@@ -13,7 +13,7 @@ from cli_support import cpkb_in_process
 from service_support import make_graph, make_point, run_live_server
 
 from client import CpkbClient
-from cpkb.embedded import free_port, stop_process, wait_ready
+from cpkb.embedded import START_TIMEOUT_S, free_port, stop_process, wait_ready
 
 
 def cpkb(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -109,7 +109,7 @@ def test_serve_runs_below_the_priority_it_was_started_with(tmp_path: Path, nice:
     command += ["--db", f"sqlite:///{tmp_path / 'kb.db'}"]
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     try:
-        assert wait_ready(f"http://127.0.0.1:{port}", server, timeout=180)
+        assert wait_ready(f"http://127.0.0.1:{port}", server, timeout=START_TIMEOUT_S)
         below = os.getpriority(os.PRIO_PROCESS, server.pid) - os.getpriority(os.PRIO_PROCESS, 0)
     finally:
         stop_process(server)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import httpx
 
-from cpkb.embedded import wait_ready
+from cpkb.embedded import START_TIMEOUT_S, wait_ready
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -37,7 +37,7 @@ class KillableServer:
         self.proc: subprocess.Popen | None = None
         self.starts = 0
 
-    def start(self, timeout: float = 180.0) -> None:
+    def start(self, timeout: float = START_TIMEOUT_S) -> None:
         self.starts += 1
         log = (self.log_dir / f"server-{self.starts}.log").open("wb")
         cmd = [sys.executable, "-m", "cpkb", "serve", "--db", self.db_url]
