@@ -17,13 +17,14 @@ import pytest
 from client import CpkbClient
 from client.models import SuggestIn
 from planner.knowledge import KnowledgeSession
-from planner.knowledge.local import LocalSurrogates, fetch_from
+from planner.knowledge.local import LocalSurrogates, fetch_from, stated_prior
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.optimize import OptimizerConfig
+from surrogate.predictors import PriorPredictor, RecentPoints, VGPPredictor
 from surrogate.sources import InMemoryModels
 
 FIXTURE = Path(__file__).parents[2] / "surrogate" / "fixtures" / "suggest_requests.json"
@@ -139,6 +140,18 @@ def test_a_stated_prior_counts_this_planners_failures_only_when_asked(counts):
         assert six == pytest.approx(1 / 8, abs=1e-6)
     else:
         assert once == pytest.approx(0.05, abs=1e-6) and six == pytest.approx(thrice, abs=1e-9)
+
+
+def test_the_stated_prior_under_served_recent_points_counts_them_as_its_own():
+    """A prior the service serves with points since (`RecentPoints` on a prior) is one prior
+    with all those points; a fit is no stated prior."""
+    none, here = np.zeros((0, 2)), np.array([[0.3, 0.3]])
+    served = RecentPoints(PriorPredictor(none, here).counted(2.0), here, np.vstack([here, here]))
+    prior = stated_prior(served)
+    assert prior is not None and len(prior.feasible) == 1 and len(prior.infeasible) == 3
+    assert prior.proba(here)[0] == pytest.approx(2 / 6, abs=1e-9)
+    fit = VGPPredictor(here, np.ones(2), 1.0, 0.0, np.zeros(1), np.zeros((1, 1)))
+    assert stated_prior(RecentPoints(fit, here, none)) is None
 
 
 @pytest.mark.parametrize("walls", [False, True])
