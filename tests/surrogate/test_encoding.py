@@ -84,6 +84,13 @@ def test_same_domain_compares_values_not_embeddings() -> None:
     assert not same_domain(space(True)["pose"], space(True)["dir"])
 
 
+def test_same_domain_tolerates_rounding_of_bounds() -> None:
+    box = ContinuousDomain(low=(0.0, 0.1), high=(1.0, 0.3))
+    assert same_domain(box, ContinuousDomain(low=[0.0, 0.1], high=[1.0, 0.3]))
+    assert same_domain(box, ContinuousDomain(low=(0.0, 0.1), high=(1.0, 0.1 + 0.2)))
+    assert not same_domain(box, ContinuousDomain(low=(0.0, 0.1), high=(1.0, 0.31)))
+
+
 def framed_space(second_frame: str | None) -> dict:
     return {
         "a": ContinuousDomain(low=[0.0, 0.0], high=[1.0, 2.0], frame="tray"),
