@@ -300,14 +300,14 @@ class KnowledgeConfig:
     (`surrogate.predictors.PriorPredictor.with_base_rate`): a decision whose constraints failed
     every time so far looks worse the more it failed. Applies where the planner maximises MPF
     itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
-    prior_counts: float = 0.0
+    prior_counts: float = 2.0
     """With s > 0, the stated prior of a type without a fit counts its points, a Beta prior of
     s pseudo-points updated by kernel-weighted counts (`surrogate.predictors.PriorPredictor`),
     instead of rating each place by its nearest point alone: a choice that failed once is rated
     1/3 (s = 2) rather than 0.05, one that failed twenty times 1/21, where the nearest-point
     form rates both alike and prefers the choice that failed most, as long as it failed at
     other placements. Applies where the planner maximises MPF itself; 0: the nearest-point
-    form."""
+    form (the paper's)."""
     model_evidence: bool = False
     """Where this planner maximises MPF, a type's fetched model is averaged with the stated
     prior on this run's own points of the type, each weighted by how well it predicted those

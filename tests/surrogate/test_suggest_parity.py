@@ -80,7 +80,10 @@ def test_the_recorded_requests_bind_fitted_types_and_ask_for_batches() -> None:
 def test_the_core_and_the_planners_snapshots_answer_alike_in_memory() -> None:
     memory = _memory()
     book = PendingBook(ttl_s=300.0)
-    local = LocalSurrogates(fetch_from(memory, SERVICE_OPTIMIZER, 300.0), background=False)
+    # The service serves the nearest-point stated prior; counting it is the planner's choice.
+    local = LocalSurrogates(
+        fetch_from(memory, SERVICE_OPTIMIZER, 300.0), background=False, prior_counts=0.0
+    )
     served = 0
     for recorded in REQUESTS:
         core = suggest(
@@ -156,7 +159,9 @@ def _wait_for_fits(client: CpkbClient, kb: str, type_ids: set[str]) -> None:
 def test_the_planner_and_the_service_answer_recorded_requests_alike(stocked_service) -> None:
     url, kb = stocked_service
     with CpkbClient(url) as client:
-        local = LocalSurrogates(lambda ids, known: client.models(kb, ids, known), background=False)
+        local = LocalSurrogates(
+            lambda ids, known: client.models(kb, ids, known), background=False, prior_counts=0.0
+        )
         for recorded in REQUESTS:
             request = SuggestIn.model_validate(recorded)
             served = client.suggest(kb, request)

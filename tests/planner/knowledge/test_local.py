@@ -16,6 +16,7 @@ import pytest
 
 from client import CpkbClient
 from client.models import SuggestIn
+from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.knowledge.local import LocalSurrogates, fetch_from, stated_prior
 from planner.search import PWUCT
@@ -75,9 +76,14 @@ def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
         raise AssertionError("fits did not land in 120 s")
 
 
-def test_own_points_weigh_in_before_the_next_fetch():
+@pytest.mark.parametrize("counts", [0.0, 2.0])
+def test_own_points_weigh_in_before_the_next_fetch(counts):
+    """A failure of this planner lowers its model where it failed at once. Nearest-point prior:
+    the next suggestion goes elsewhere. Counted (the grasp type here holds two points, one
+    feasible at the grasp suggested): one success and one failure rate the grasp 1/2, as an
+    untried one, and the next suggestion sees that value."""
     request = _grasp_request()
-    local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False)
+    local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False, prior_counts=counts)
     first = local.suggest(request, rollout=0, stored=0)
     type_id = min(first.p_feasible, key=first.p_feasible.get)
     constraint = next(c for c in request.constraints if c.type_id == type_id)
@@ -90,7 +96,11 @@ def test_own_points_weigh_in_before_the_next_fetch():
     again = local.suggest(request, rollout=1, stored=0)
     assert after < before - 0.1
     assert local.fetches == 1  # weighed in without asking for the model again
-    assert again.x != first.x
+    if counts:
+        assert after == pytest.approx(0.5, abs=1e-3)
+        assert again.mpf <= after + 1e-9
+    else:
+        assert again.x != first.x
 
 
 @pytest.mark.parametrize("base_rate", [False, True])
@@ -269,11 +279,13 @@ def test_a_failed_local_suggestion_falls_back_for_that_call_only(live_kb):
 def test_a_type_this_planner_creates_guides_at_once_as_the_service_would(live_kb):
     """A failure of a new type is taken up by the planner's own models at once (no wait for
     its first point to be stored, no fetch): the stated prior on the planner's own points,
-    which is what the service serves for it once stored."""
+    which is what the service serves for it once stored (the nearest-point form: counting the
+    points is the planner's choice, `knowledge.prior_counts`)."""
     _stock(live_kb)
     with CpkbClient(live_kb.url) as client:
         world = analytic_world("desk")
-        session = KnowledgeSession(client, live_kb.name, world, background=False)
+        config = KnowledgeConfig(prior_counts=0.0)
+        session = KnowledgeSession(client, live_kb.name, world, background=False, config=config)
         session.prematch()
         grasp = world.skeleton.decisions[0]
         assert session.suggest(grasp, {}, [], session.constraints_at("#dir1", {}), seed=0)
