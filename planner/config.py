@@ -307,7 +307,7 @@ class KnowledgeConfig:
     1/3 (s = 2) rather than 0.05, one that failed twenty times 1/21, where the nearest-point
     form rates both alike and prefers the choice that failed most, as long as it failed at
     other placements. Applies where the planner maximises MPF itself; 0: the nearest-point
-    form (the paper's)."""
+    form (`cp-bo-paper` pins it)."""
     model_evidence: bool = False
     """Where this planner maximises MPF, a type's fetched model is averaged with the stated
     prior on this run's own points of the type, each weighted by how well it predicted those
