@@ -132,8 +132,8 @@ class _Model:
     # Other planners' points since (point id, x, ok): `LocalSurrogates.learn`.
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
-    base_rate: bool = False  # `KnowledgeConfig.prior_base_rate`
-    prior_counts: float = 0.0  # `KnowledgeConfig.prior_counts`
+    base_rate: bool = KnowledgeConfig.prior_base_rate
+    prior_counts: float = KnowledgeConfig.prior_counts
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
