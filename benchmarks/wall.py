@@ -1,0 +1,138 @@
+"""Where a bench's wall time goes, per task kind and method, against a baseline method.
+
+A guided run pays for its suggestions and usually simulates more per rollout (its bindings get
+past the cheap checks), so it is faster than the baseline only beyond some reduction in
+rollouts. Per kind and method this prints the means per run (wall time, rollouts, simulation,
+suggestions with their count and mean cost, the rest: loading the world, the tree, the other
+knowledge-base calls) and, against the baseline, the wall ratio, the rollout reduction reached
+and the reduction at which the wall times would be level (1 - the baseline's cost per rollout
+over the method's, both as mean wall over mean rollouts). Report wall times of runs made with
+`--workers 1` only; `--seeds` picks them out of a joined directory.
+
+    .venv/bin/python benchmarks/wall.py benchmarks/results/heldout19 --seeds 8000-8004
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cpkb.bench.results import ResultStore
+from cpkb.bench.scenarios import task_kinds
+from cpkb.bench.stats import rollouts_metric
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Means per run of one method on one task kind."""
+
+    runs: int
+    wall_s: float
+    rollouts: float
+    sim_s: float
+    suggest_s: float
+    requests: float
+
+    @property
+    def rest_s(self) -> float:
+        return self.wall_s - self.sim_s - self.suggest_s
+
+    @property
+    def per_rollout_s(self) -> float:
+        return self.wall_s / self.rollouts if self.rollouts else 0.0
+
+    @property
+    def request_s(self) -> float:
+        return self.suggest_s / self.requests if self.requests else 0.0
+
+
+def seed_range(text: str) -> range:
+    """`8000-8004` (both ends included) or a single seed."""
+    first, _, last = text.partition("-")
+    try:
+        low, high = int(first), int(last or first)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds: {text!r} is not FIRST-LAST") from None
+    if high < low:
+        raise argparse.ArgumentTypeError(f"seeds: {text!r} ends before it starts")
+    return range(low, high + 1)
+
+
+def _suggest_s(record: dict) -> float:
+    """Time in suggestions: the planner's own (`sample_s` covers every proposal, the knowledge
+    base's part of it in `kb_parts.suggest`); quasi-random's proposals cost next to nothing."""
+    parts = record.get("kb_parts") or {}
+    return float(parts.get("suggest", 0.0))
+
+
+def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
+    """(kind, method) -> its means; "all" pools the kinds."""
+    grouped: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    kinds = task_kinds({str(r["task"]) for r in records})
+    for record in records:
+        kind = kinds.get(str(record["task"]), str(record["task"]))
+        grouped[(kind, record["method"])].append(record)
+        grouped[("all", record["method"])].append(record)
+    return {
+        key: Cell(
+            runs=len(found),
+            wall_s=float(np.mean([r["wall_s"] for r in found])),
+            rollouts=float(np.mean([rollouts_metric(r) for r in found])),
+            sim_s=float(np.mean([r["sim_s"] for r in found])),
+            suggest_s=float(np.mean([_suggest_s(r) for r in found])),
+            requests=float(np.mean([r.get("suggestions", 0) for r in found])),
+        )
+        for key, found in grouped.items()
+    }
+
+
+def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
+    """Markdown rows, kinds in order with "all" last, the baseline first within a kind."""
+    lines = [
+        "| kind | method | runs | wall | rollouts | simulation | suggestions (requests x cost)"
+        " | rest | per rollout | wall / baseline | rollouts saved | level at |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    kinds = sorted({kind for kind, _ in found}, key=lambda k: (k == "all", k))
+    for kind in kinds:
+        base = found.get((kind, baseline))
+        methods = sorted((m for k, m in found if k == kind), key=lambda m: (m != baseline, m))
+        for method in methods:
+            cell = found[(kind, method)]
+            against = ["-", "-", "-"]
+            if base is not None and method != baseline and base.wall_s and base.rollouts:
+                saved = 1.0 - cell.rollouts / base.rollouts
+                level = 1.0 - base.per_rollout_s / cell.per_rollout_s if cell.rollouts else 0.0
+                against = [f"{cell.wall_s / base.wall_s:.2f}", f"{saved:.0%}", f"{level:.0%}"]
+            lines.append(
+                f"| {kind} | {method} | {cell.runs} | {cell.wall_s:.2f} s | {cell.rollouts:.1f} "
+                f"| {cell.sim_s:.2f} s | {cell.suggest_s:.2f} s ({cell.requests:.1f} x "
+                f"{1000 * cell.request_s:.1f} ms) | {cell.rest_s:.2f} s "
+                f"| {1000 * cell.per_rollout_s:.1f} ms | {' | '.join(against)} |"
+            )
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("results", type=Path, help="a bench's --out directory")
+    parser.add_argument("--baseline", default="quasi-random", help="(default quasi-random)")
+    parser.add_argument("--seeds", type=seed_range, help="only these seeds, e.g. 8000-8004")
+    args = parser.parse_args(argv)
+    records = ResultStore(args.results).records()
+    if args.seeds is not None:
+        records = [r for r in records if int(r["seed"]) in args.seeds]
+    if not records:
+        print(f"no runs in {args.results} for those seeds", file=sys.stderr)
+        return 2
+    print("\n".join(table(cells(records), args.baseline)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,86 @@
+"""benchmarks/wall.py: means per kind and method, the wall ratio and the level-at reduction."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parents[2]
+SCRIPT = ROOT / "benchmarks" / "wall.py"
+DESK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "desk.yaml")
+REGRASP = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "regrasp.yaml")
+
+
+def _wall():
+    spec = importlib.util.spec_from_file_location("wall", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclass resolves its annotations through it
+    spec.loader.exec_module(module)
+    return module
+
+
+def _run(task: str, method: str, seed: int, rollouts: int, wall: float, sim: float, **kb) -> dict:
+    return {
+        "task": task,
+        "method": method,
+        "seed": seed,
+        "rollouts": rollouts,
+        "solved": True,
+        "max_rollouts": 2000,
+        "wall_s": wall,
+        "sim_s": sim,
+        "suggestions": kb.get("requests", 0),
+        "kb_parts": {"suggest": kb["suggest"]} if "suggest" in kb else {},
+    }
+
+
+RUNS = [
+    _run(REGRASP, "quasi-random", 1, 200, 1.0, 0.9),
+    _run(REGRASP, "quasi-random", 2, 100, 0.6, 0.5),
+    _run(REGRASP, "guided", 1, 40, 0.9, 0.5, requests=20, suggest=0.2),
+    _run(REGRASP, "guided", 2, 20, 0.54, 0.3, requests=10, suggest=0.1),
+    _run(DESK, "quasi-random", 1, 50, 0.4, 0.3),
+    _run(DESK, "guided", 1, 10, 0.2, 0.1, requests=4, suggest=0.05),
+    _run(DESK, "guided", 9, 10, 5.0, 4.0, requests=4, suggest=0.05),  # another block's seed
+]
+
+
+def test_cells_hold_the_means_per_run_and_the_costs_per_rollout_and_request():
+    found = _wall().cells(RUNS[:4])
+    base, guided = found[("regrasp", "quasi-random")], found[("regrasp", "guided")]
+    assert base.runs == 2 and base.wall_s == pytest.approx(0.8) and base.rollouts == 150
+    assert guided.sim_s == pytest.approx(0.4) and guided.suggest_s == pytest.approx(0.15)
+    assert guided.rest_s == pytest.approx(0.72 - 0.4 - 0.15)
+    assert guided.requests == 15 and guided.request_s == pytest.approx(0.01)
+    assert guided.per_rollout_s == pytest.approx(0.72 / 30)
+    assert base.request_s == 0.0 and found[("all", "guided")] == guided
+
+
+def test_the_table_compares_each_method_with_the_baseline_of_its_kind(tmp_path, capsys):
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in RUNS))
+    assert _wall().main([str(tmp_path), "--seeds", "1-2"]) == 0
+    rows = {
+        tuple(c.strip() for c in line.split("|")[1:3]): line
+        for line in capsys.readouterr().out.splitlines()
+    }
+    guided = rows[("regrasp", "guided")]
+    # wall 0.72 against 0.80; 30 rollouts against 150 (80 % saved); per rollout 24 ms against
+    # 5.33 ms, so the wall times would be level at 1 - 5.33 / 24 = 78 % fewer rollouts.
+    assert "| 0.90 | 80% | 78% |" in guided
+    assert "(15.0 x 10.0 ms)" in guided
+    assert rows[("regrasp", "quasi-random")].endswith("| - | - | - |")
+    desk = rows[("desk", "guided")]
+    assert "| 1 |" in desk and "| 0.50 | 80% |" in desk  # seed 9 left out
+
+
+def test_bad_seeds_and_an_empty_selection_are_clear_errors(tmp_path, capsys):
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in RUNS))
+    with pytest.raises(SystemExit) as exc:
+        _wall().main([str(tmp_path), "--seeds", "5-2"])
+    assert exc.value.code == 2 and "ends before it starts" in capsys.readouterr().err
+    assert _wall().main([str(tmp_path), "--seeds", "100-200"]) == 2
+    assert "no runs in" in capsys.readouterr().err
