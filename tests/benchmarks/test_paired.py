@@ -2,23 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
+from script_support import ROOT, load_script
 
-ROOT = Path(__file__).parents[2]
-SCRIPT = ROOT / "benchmarks" / "paired.py"
 DESK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "desk.yaml")
 PACK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "pack.yaml")
-
-
-def _paired():
-    spec = importlib.util.spec_from_file_location("paired", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _run(task: str, method: str, seed: int, rollouts: int, solved: bool = True) -> dict:
@@ -42,19 +32,19 @@ def test_arms_are_paired_by_target_and_seed_and_twins_averaged(tmp_path, capsys)
         _run(PACK, "a1", 1, 5),  # no B run of this pair: left out
     ]
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
-    found = _paired().pairs([*runs], ["a1", "a2"], ["b"])
+    found = load_script("paired").pairs([*runs], ["a1", "a2"], ["b"])
     assert found["desk"] == [(20.0, 10.0), (40.0, 100.0)]
     assert "pack" not in found and found["all"] == found["desk"]
-    assert _paired().main([str(tmp_path), "a1+a2", "b"]) == 0
+    assert load_script("paired").main([str(tmp_path), "a1+a2", "b"]) == 0
     out = capsys.readouterr().out
     assert "| desk | 2 | 30.0 | 55.0 | 1.83 |" in out
 
 
 def test_an_empty_results_directory_is_a_clear_error(tmp_path, capsys):
-    assert _paired().main([str(tmp_path), "a", "b"]) == 2
+    assert load_script("paired").main([str(tmp_path), "a", "b"]) == 2
     assert "no runs" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        _paired().main([str(tmp_path)])
+        load_script("paired").main([str(tmp_path)])
 
 
 def test_an_arm_may_come_from_another_benchs_directory(tmp_path, capsys):
@@ -65,5 +55,5 @@ def test_an_arm_may_come_from_another_benchs_directory(tmp_path, capsys):
     ):
         directory.mkdir()
         (directory / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
-    assert _paired().main([str(tmp_path), "alone:cp-bo", "n8:cp-bo"]) == 0
+    assert load_script("paired").main([str(tmp_path), "alone:cp-bo", "n8:cp-bo"]) == 0
     assert "| desk | 1 | 40.0 | 10.0 | 0.25 |" in capsys.readouterr().out  # seed 1 only

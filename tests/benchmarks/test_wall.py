@@ -2,25 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import pytest
+from script_support import ROOT, load_script
 
-ROOT = Path(__file__).parents[2]
-SCRIPT = ROOT / "benchmarks" / "wall.py"
 DESK = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "desk.yaml")
 REGRASP = str(ROOT / "benchmarks" / "suites" / "dev" / "ws00" / "regrasp.yaml")
-
-
-def _wall():
-    spec = importlib.util.spec_from_file_location("wall", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass resolves its annotations through it
-    spec.loader.exec_module(module)
-    return module
 
 
 def _run(task: str, method: str, seed: int, rollouts: int, wall: float, sim: float, **kb) -> dict:
@@ -50,7 +38,7 @@ RUNS = [
 
 
 def test_cells_hold_the_means_per_run_and_the_costs_per_rollout_and_request():
-    found = _wall().cells(RUNS[:4])
+    found = load_script("wall").cells(RUNS[:4])
     base, guided = found[("regrasp", "quasi-random")], found[("regrasp", "guided")]
     assert base.runs == 2 and base.wall_s == pytest.approx(0.8) and base.rollouts == 150
     assert guided.sim_s == pytest.approx(0.4) and guided.suggest_s == pytest.approx(0.15)
@@ -62,7 +50,7 @@ def test_cells_hold_the_means_per_run_and_the_costs_per_rollout_and_request():
 
 def test_the_table_compares_each_method_with_the_baseline_of_its_kind(tmp_path, capsys):
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in RUNS))
-    assert _wall().main([str(tmp_path), "--seeds", "1-2"]) == 0
+    assert load_script("wall").main([str(tmp_path), "--seeds", "1-2"]) == 0
     rows = {
         tuple(c.strip() for c in line.split("|")[1:3]): line
         for line in capsys.readouterr().out.splitlines()
@@ -80,7 +68,7 @@ def test_the_table_compares_each_method_with_the_baseline_of_its_kind(tmp_path, 
 def test_bad_seeds_and_an_empty_selection_are_clear_errors(tmp_path, capsys):
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in RUNS))
     with pytest.raises(SystemExit) as exc:
-        _wall().main([str(tmp_path), "--seeds", "5-2"])
+        load_script("wall").main([str(tmp_path), "--seeds", "5-2"])
     assert exc.value.code == 2 and "ends before it starts" in capsys.readouterr().err
-    assert _wall().main([str(tmp_path), "--seeds", "100-200"]) == 2
+    assert load_script("wall").main([str(tmp_path), "--seeds", "100-200"]) == 2
     assert "no runs in" in capsys.readouterr().err
