@@ -24,7 +24,7 @@ import numpy as np
 
 from cpkb.bench.results import ResultStore
 from cpkb.bench.scenarios import task_kinds
-from cpkb.bench.stats import rollouts_metric
+from cpkb.bench.stats import ordered, rollouts_metric
 
 
 @dataclass(frozen=True)
@@ -64,8 +64,8 @@ def seed_range(text: str) -> range:
 
 
 def _suggest_s(record: dict) -> float:
-    """Time in suggestions: the planner's own (`sample_s` covers every proposal, the knowledge
-    base's part of it in `kb_parts.suggest`); quasi-random's proposals cost next to nothing."""
+    """Time in the knowledge base's suggestions (`kb_parts.suggest`, wherever MPF was
+    maximised); a method that asks none, such as quasi-random, has no such part."""
     parts = record.get("kb_parts") or {}
     return float(parts.get("suggest", 0.0))
 
@@ -101,7 +101,7 @@ def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
     kinds = sorted({kind for kind, _ in found}, key=lambda k: (k == "all", k))
     for kind in kinds:
         base = found.get((kind, baseline))
-        methods = sorted((m for k, m in found if k == kind), key=lambda m: (m != baseline, m))
+        methods = ordered((m for k, m in found if k == kind), [baseline])
         for method in methods:
             cell = found[(kind, method)]
             against = ["-", "-", "-"]
