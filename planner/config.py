@@ -308,6 +308,13 @@ class KnowledgeConfig:
     form rates both alike and prefers the choice that failed most, as long as it failed at
     other placements. Applies where the planner maximises MPF itself; 0: the nearest-point
     form (`cp-bo-paper` pins it)."""
+    prior_choice_rates: bool = False
+    """With `prior_counts`, the counted prior of a type without a fit is centred per
+    categorical choice (`surrogate.predictors.PriorPredictor.by_choice`): a grasp whose every
+    placement on a shelf failed is rated low at the shelf's untried placements too, where the
+    kernel alone rates a place far from its failures at the centre whatever grasp made them.
+    Relative to the best choice, which keeps the centre. Applies where the planner maximises MPF
+    itself; the paper's prior has no choices."""
     model_evidence: bool = False
     """Where this planner maximises MPF, a type's fetched model is averaged with the stated
     prior on this run's own points of the type, each weighted by how well it predicted those
@@ -386,6 +393,8 @@ class KnowledgeConfig:
                 f"knowledge.stored_hints_prefer is one of {', '.join(STORED_HINTS_PREFER)},"
                 f" not {self.stored_hints_prefer!r}"
             )
+        if self.prior_choice_rates and self.prior_counts == 0:
+            raise ConfigError("knowledge.prior_choice_rates needs knowledge.prior_counts > 0")
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
         if not 0.0 < self.model_evidence_prior < 1.0:
@@ -478,6 +487,7 @@ PRESETS: Mapping[str, Preset] = {
             "knowledge.size_inputs": False,
             "knowledge.prior_base_rate": False,
             "knowledge.prior_counts": 0.0,
+            "knowledge.prior_choice_rates": False,
             "knowledge.model_evidence": False,
             "knowledge.follow_found": False,
         },

@@ -172,6 +172,16 @@ class SpaceEncoder:
         self.separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
         self.dim = start + sum(_pair_width(a, b) for a, b in self.separations)
 
+    def choice_rows(self) -> tuple[tuple[slice, np.ndarray], ...]:
+        """Per categorical variable: its columns in Z and its distinct choice rows `(k, width)`
+        (a symmetric embedding gives choices that place alike one row): every choice it can
+        take."""
+        return tuple(
+            (slice(var.start, var.start + var.width), np.unique(var.table, axis=0))
+            for var in self.vars
+            if var.table is not None
+        )
+
     # --- points <-> columns -------------------------------------------------------------
     def columns(self, points: Sequence[Mapping[str, Value]], where: str = "") -> Columns:
         """Validated columns of `points`; every variable must be present; extra keys ignored.

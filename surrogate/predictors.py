@@ -9,6 +9,7 @@ that a planner, which only loads served snapshots, never imports torch or gpytor
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -51,6 +52,11 @@ class PriorPredictor:
     Beta prior of s pseudo-points updated by kernel-weighted counts. Evidence then grows with
     the number of points: the nearest-point form rates a choice that failed once as low as one
     that failed twenty times (0.05 both), the counted one 1/3 against 1/21 (s = 2).
+
+    Counted and with `choices` (`by_choice`), the centre depends on the row's categorical
+    choices: `c r_k / r_best`, r_k the Beta-smoothed rate `(s c + a_k) / (s + n_k)` of the
+    points with the row's choices k (c for choices no point has), r_best the best such rate
+    among the possible choices.
     """
 
     feasible: np.ndarray  # (a, D)
@@ -59,12 +65,15 @@ class PriorPredictor:
     lengthscale: float = SurrogateConfig.prior_lengthscale
     center: float = 0.5
     strength: float = 0.0
+    # Per categorical variable: its columns in Z and its distinct choice rows `(k, width)`.
+    choices: tuple[tuple[slice, np.ndarray], ...] = ()
 
     def proba(self, z: np.ndarray) -> np.ndarray:
         ell, c = self.lengthscale, self.center
         if self.strength > 0:
+            centre = self._choice_centres(z) if self.choices else c
             up, down = _mass(z, self.feasible, ell), _mass(z, self.infeasible, ell)
-            return (self.strength * c + up) / (self.strength + up + down)
+            return (self.strength * centre + up) / (self.strength + up + down)
         up, down = _reach(z, self.feasible, ell), _reach(z, self.infeasible, ell)
         return c + 2 * self.weight * ((1.0 - c) * up - c * down)
 
@@ -82,6 +91,33 @@ class PriorPredictor:
             if extra is not None and len(extra)
         }
         return dataclasses.replace(self, strength=strength, **more)
+
+    def by_choice(self, choices: tuple[tuple[slice, np.ndarray], ...]) -> PriorPredictor:
+        """This prior with its centre set per categorical choice (see the class): a grasp
+        whose every placement failed is rated low at placements far from those failures too,
+        where the kernel alone leaves it at the centre. Relative to the best choice, so the
+        best keeps the centre: a rate per type lowered every place of it, and a search then
+        left its nodes before trying their best choice (`knowledge.prior_base_rate`)."""
+        return dataclasses.replace(self, choices=choices)
+
+    def _choice_centres(self, z: np.ndarray) -> np.ndarray:
+        """`(n,)` the centre of each row of `z`, by the rate of its categorical choices."""
+        columns = np.concatenate([np.arange(s.start, s.stop) for s, _ in self.choices])
+        points = np.vstack([self.feasible, self.infeasible])
+        c, s = self.center, self.strength
+        if len(points) == 0 or len(columns) == z.shape[1]:
+            # With nothing but choices as inputs, the kernel's counts are the choice's own
+            # already: a centre set by them would count every point twice.
+            return np.full(len(z), c)
+        keys, inverse = np.unique(points[:, columns], axis=0, return_inverse=True)
+        feasible = np.bincount(inverse.ravel()[: len(self.feasible)], minlength=len(keys))
+        counts = np.bincount(inverse.ravel(), minlength=len(keys))
+        rates = (s * c + feasible) / (s + counts)
+        possible = math.prod(len(rows) for _, rows in self.choices)
+        best = max(rates.max(), c) if len(keys) < possible else rates.max()
+        same = np.abs(z[:, None, columns] - keys[None, :, :]).max(axis=-1) < 1e-9  # (n, keys)
+        row_rates = np.where(same.any(axis=1), rates[same.argmax(axis=1)], c)
+        return c * row_rates / best
 
     def with_base_rate(self, feasible: int = 0, infeasible: int = 0) -> PriorPredictor:
         """This prior centred on its type's rate of feasible points, Laplace-smoothed:

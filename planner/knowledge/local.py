@@ -121,6 +121,35 @@ class Evidence:
         return float(1.0 / (1.0 + np.exp(-logit)))
 
 
+@dataclass(frozen=True)
+class PriorSettings:
+    """How this planner states the prior of a type without a fit (the `knowledge.prior_*`
+    knobs of `KnowledgeConfig`, which say why each exists)."""
+
+    base_rate: bool = KnowledgeConfig.prior_base_rate
+    counts: float = KnowledgeConfig.prior_counts
+    choice_rates: bool = KnowledgeConfig.prior_choice_rates
+
+    @classmethod
+    def of(cls, config: KnowledgeConfig) -> PriorSettings:
+        return cls(config.prior_base_rate, config.prior_counts, config.prior_choice_rates)
+
+    def counted(
+        self,
+        prior: PriorPredictor,
+        space: Mapping[str, Domain],
+        feasible: list[dict[str, Value]] | None = None,
+        infeasible: list[dict[str, Value]] | None = None,
+    ) -> PriorPredictor:
+        """`prior` counting its points (`counts` pseudo-points), with `feasible` and
+        `infeasible` more of them, centred per categorical choice with `choice_rates`."""
+        more = _encoded(space, feasible or [], infeasible or [])
+        counted = prior.counted(self.counts, *more)
+        if not self.choice_rates:
+            return counted
+        return counted.by_choice(SpaceEncoder(space).choice_rows())
+
+
 @dataclass
 class _Model:
     space: dict[str, Domain]
@@ -132,8 +161,7 @@ class _Model:
     # Other planners' points since (point id, x, ok): `LocalSurrogates.learn`.
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
-    base_rate: bool = KnowledgeConfig.prior_base_rate
-    prior_counts: float = KnowledgeConfig.prior_counts
+    prior: PriorSettings = PriorSettings()
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
@@ -162,9 +190,9 @@ class _Model:
         self, feasible: list[dict[str, Value]], infeasible: list[dict[str, Value]]
     ) -> PriorPredictor:
         prior = PriorPredictor(*_encoded(self.space, feasible, infeasible))
-        if self.base_rate:
+        if self.prior.base_rate:
             prior = prior.with_base_rate()
-        return prior.counted(self.prior_counts) if self.prior_counts > 0 else prior
+        return self.prior.counted(prior, self.space) if self.prior.counts > 0 else prior
 
     def model(self) -> FeasibilityPredictor:
         """The fetched predictor with this planner's points since weighed in; for a type this
@@ -179,11 +207,11 @@ class _Model:
         if not self.fetched:
             return self._stated_prior(feasible, infeasible)
         fitted = self.fitted
-        if self.base_rate:
+        if self.prior.base_rate:
             fitted = with_base_rate(fitted, len(feasible), len(infeasible))
-        if self.prior_counts > 0 and (prior := stated_prior(fitted)) is not None:
+        if self.prior.counts > 0 and (prior := stated_prior(fitted)) is not None:
             # Counted, the points since the service's prior are more of its points.
-            return prior.counted(self.prior_counts, *_encoded(self.space, feasible, infeasible))
+            return self.prior.counted(prior, self.space, feasible, infeasible)
         if not feasible and not infeasible:
             return fitted
         return RecentPoints(fitted, *_encoded(self.space, feasible, infeasible))
@@ -275,8 +303,7 @@ class LocalSurrogates:
         background: bool = True,
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
         pending_clock: Callable[[], float] = time.monotonic,
-        prior_base_rate: bool = KnowledgeConfig.prior_base_rate,
-        prior_counts: float = KnowledgeConfig.prior_counts,
+        prior: PriorSettings = PriorSettings(),
         spread_walls: bool = KnowledgeConfig.spread_walls,
         model_evidence: bool = KnowledgeConfig.model_evidence,
         model_evidence_prior: float = KnowledgeConfig.model_evidence_prior,
@@ -285,8 +312,7 @@ class LocalSurrogates:
         until a point answers them, so that how long a run waits does not change its course."""
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
-        self.prior_base_rate = prior_base_rate
-        self.prior_counts = prior_counts
+        self.prior = prior
         self.model_evidence = model_evidence
         self.model_evidence_prior = model_evidence_prior
         self._models: dict[str, _Model] = {}
@@ -329,8 +355,7 @@ class LocalSurrogates:
                 n_fitted=0,
                 fetched_at=0,
                 born_with=stored_with,
-                base_rate=self.prior_base_rate,
-                prior_counts=self.prior_counts,
+                prior=self.prior,
                 evidence=self._evidence(None),
             )
         return True
@@ -497,8 +522,7 @@ class LocalSurrogates:
                 fetched_at=rollout,
                 own=own,
                 others=others,
-                base_rate=self.prior_base_rate,
-                prior_counts=self.prior_counts,
+                prior=self.prior,
                 evidence=self._evidence(previous),
             )
         for type_id in type_ids:

@@ -41,7 +41,7 @@ from planner.config import KnowledgeConfig
 from planner.failures import Encodings, FailureGraph, failure_graph, size_constants
 from planner.knowledge.found import FoundBindings
 from planner.knowledge.live import LiveFeed, PeerHints, PendingExchange, joined_hints
-from planner.knowledge.local import LocalSurrogates
+from planner.knowledge.local import LocalSurrogates, PriorSettings
 from planner.knowledge.poster import PointPoster
 from planner.skeleton import DecisionVar
 from planner.world import BindingWorld, CheckResult, TransitionOutcome
@@ -186,8 +186,7 @@ class KnowledgeSession:
                 lambda ids, known: client.models(kb, ids, known),
                 background=background,
                 refresh_rollouts=self.config.refresh_rollouts,
-                prior_base_rate=self.config.prior_base_rate,
-                prior_counts=self.config.prior_counts,
+                prior=PriorSettings.of(self.config),
                 spread_walls=self.config.spread_walls,
                 model_evidence=self.config.model_evidence,
                 model_evidence_prior=self.config.model_evidence_prior,

@@ -59,6 +59,10 @@ def test_a_misspelled_key_names_the_known_keys():
         ({"knowledge.model_evidence_prior": 1.0}, "strictly between 0 and 1"),
         ({"cp_bo.explore_below": -0.1}, "cp_bo.explore_below must be at least 0"),
         (
+            {"knowledge.prior_choice_rates": True, "knowledge.prior_counts": 0.0},
+            "prior_choice_rates needs knowledge.prior_counts",
+        ),
+        (
             {"knowledge.size_inputs": True, "knowledge.movable_names": False},
             "size_inputs needs knowledge.movable_names",
         ),

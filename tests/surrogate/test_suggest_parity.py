@@ -21,7 +21,7 @@ import pytest
 from client import CpkbClient
 from client.errors import BadRequest
 from client.models import PointIn, SuggestIn, SuggestOut
-from planner.knowledge.local import LocalSurrogates, fetch_from
+from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from
 from surrogate.domains import space_from_json
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
@@ -82,7 +82,9 @@ def test_the_core_and_the_planners_snapshots_answer_alike_in_memory() -> None:
     book = PendingBook(ttl_s=300.0)
     # The service serves the nearest-point stated prior; counting it is the planner's choice.
     local = LocalSurrogates(
-        fetch_from(memory, SERVICE_OPTIMIZER, 300.0), background=False, prior_counts=0.0
+        fetch_from(memory, SERVICE_OPTIMIZER, 300.0),
+        background=False,
+        prior=PriorSettings(counts=0.0),
     )
     served = 0
     for recorded in REQUESTS:
@@ -160,7 +162,9 @@ def test_the_planner_and_the_service_answer_recorded_requests_alike(stocked_serv
     url, kb = stocked_service
     with CpkbClient(url) as client:
         local = LocalSurrogates(
-            lambda ids, known: client.models(kb, ids, known), background=False, prior_counts=0.0
+            lambda ids, known: client.models(kb, ids, known),
+            background=False,
+            prior=PriorSettings(counts=0.0),
         )
         for recorded in REQUESTS:
             request = SuggestIn.model_validate(recorded)

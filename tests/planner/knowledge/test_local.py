@@ -18,7 +18,7 @@ from client import CpkbClient
 from client.models import SuggestIn
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
-from planner.knowledge.local import LocalSurrogates, fetch_from, stated_prior
+from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from, stated_prior
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler
@@ -83,7 +83,9 @@ def test_own_points_weigh_in_before_the_next_fetch(counts):
     feasible at the grasp suggested): one success and one failure rate the grasp 1/2, as an
     untried one, and the next suggestion sees that value."""
     request = _grasp_request()
-    local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False, prior_counts=counts)
+    local = LocalSurrogates(
+        fetch_from(_memory(), OPTIMIZER), background=False, prior=PriorSettings(counts=counts)
+    )
     first = local.suggest(request, rollout=0, stored=0)
     type_id = min(first.p_feasible, key=first.p_feasible.get)
     constraint = next(c for c in request.constraints if c.type_id == type_id)
@@ -114,7 +116,7 @@ def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(bas
     points = [({"#pose": [float(a), float(b)]}, False) for a, b in rng.random((6, 2)) * 0.2]
     memory.add("failing", space_from_json(space), points)
     local = LocalSurrogates(
-        fetch_from(memory, OPTIMIZER), background=False, prior_base_rate=base_rate
+        fetch_from(memory, OPTIMIZER), background=False, prior=PriorSettings(base_rate=base_rate)
     )
     local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
     model = local._models["failing"]
@@ -126,6 +128,38 @@ def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(bas
     assert float(model.predictor().proba(far)[0]) == pytest.approx(expected, abs=1e-6)
 
 
+@pytest.mark.parametrize("choice_rates", [False, True])
+def test_a_grasp_that_failed_everywhere_is_rated_by_its_rate_only_when_asked(choice_rates):
+    """`knowledge.prior_choice_rates`: a fetched stated prior whose points are failures of the
+    top grasp in one corner, with this planner's own failures since, rates the top grasp low
+    at the far corner too; an untried grasp there keeps the centre either way."""
+    memory = _memory()
+    space = {
+        "#dir": {"kind": "categorical", "choices": ["top", "front"]},
+        "#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]},
+    }
+    corner = [({"#dir": "top", "#pose": [0.05 * i, 0.0]}, False) for i in range(4)]
+    memory.add("shelf", space_from_json(space), corner)
+    local = LocalSurrogates(
+        fetch_from(memory, OPTIMIZER),
+        background=False,
+        prior=PriorSettings(choice_rates=choice_rates),
+    )
+    local._apply(local._fetch_now(["shelf"]), ["shelf"], 0, 0, 0)
+    local.note("shelf", {"#dir": "top", "#pose": [0.0, 0.1]}, feasible=False, batch=1)
+    model = local._models["shelf"]
+    encoder = SpaceEncoder(model.space)
+    top, front = (
+        float(model.predictor().proba(encoder.encode_points([{"#dir": d, "#pose": [1.0, 1.0]}]))[0])
+        for d in ("top", "front")
+    )
+    assert front == pytest.approx(0.5, abs=0.02)
+    if choice_rates:
+        assert top < 0.5 * (2 * 0.5 / 7) / 0.5 + 1e-9  # the rate of five failures, 1 / 7
+    else:
+        assert top == pytest.approx(0.5, abs=0.02)
+
+
 @pytest.mark.parametrize("counts", [0.0, 2.0])
 def test_a_stated_prior_counts_this_planners_failures_only_when_asked(counts):
     """`knowledge.prior_counts`: a fetched stated prior takes this planner's own points since
@@ -134,7 +168,9 @@ def test_a_stated_prior_counts_this_planners_failures_only_when_asked(counts):
     memory = _memory()
     space = {"#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}}
     memory.add("failing", space_from_json(space), [({"#pose": [0.2, 0.2]}, False)])
-    local = LocalSurrogates(fetch_from(memory, OPTIMIZER), background=False, prior_counts=counts)
+    local = LocalSurrogates(
+        fetch_from(memory, OPTIMIZER), background=False, prior=PriorSettings(counts=counts)
+    )
     local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
     model = local._models["failing"]
     there = SpaceEncoder(model.space).encode_points([{"#pose": [0.2, 0.2]}])
