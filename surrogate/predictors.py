@@ -115,7 +115,7 @@ class PriorPredictor:
         rates = (s * c + feasible) / (s + counts)
         possible = math.prod(len(rows) for _, rows in self.choices)
         best = max(rates.max(), c) if len(keys) < possible else rates.max()
-        same = np.abs(z[:, None, columns] - keys[None, :, :]).max(axis=-1) < 1e-9  # (n, keys)
+        same = same_rows(z[:, columns], keys)
         row_rates = np.where(same.any(axis=1), rates[same.argmax(axis=1)], c)
         return c * row_rates / best
 
@@ -136,6 +136,12 @@ class PriorPredictor:
         Conditioning on every point could only lower it: an upper bound, 1 far from them all."""
         points = np.vstack([self.feasible, self.infeasible])
         return _unexplained(_nearest_reach(z, points, self.lengthscale))
+
+
+def same_rows(block: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """`(n, k)` whether each row of `block` `(n, w)` is each of `rows` `(k, w)`: categorical
+    choices are table rows, compared exactly up to float noise."""
+    return np.abs(block[:, None, :] - rows[None, :, :]).max(axis=-1) < 1e-9
 
 
 def _reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
@@ -230,8 +236,7 @@ class UnseenChoices:
     def _unseen(self, z: np.ndarray) -> np.ndarray:
         unseen = np.zeros(len(z), dtype=bool)
         for columns, rows in self.seen:
-            same = np.abs(z[:, None, columns] - rows[None, :, :]).max(axis=-1) < 1e-9
-            unseen |= ~same.any(axis=1)
+            unseen |= ~same_rows(z[:, columns], rows).any(axis=1)
         return unseen
 
     def _answer(self, z: np.ndarray, of_base: Any, of_prior: Any) -> np.ndarray:

@@ -35,12 +35,9 @@ def needs_model(y: np.ndarray) -> bool:
 def seen_choices(encoder: SpaceEncoder, z: np.ndarray) -> Seen:
     """Per categorical variable of the encoding: its columns and the distinct rows of `z` there
     (the choices the fitted points hold)."""
-    seen = []
-    for var in encoder.vars:
-        if var.table is not None:
-            columns = slice(var.start, var.start + var.width)
-            seen.append((columns, np.unique(z[:, columns], axis=0)))
-    return tuple(seen)
+    return tuple(
+        (columns, np.unique(z[:, columns], axis=0)) for columns, _ in encoder.choice_rows()
+    )
 
 
 def served_predictor(

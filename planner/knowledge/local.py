@@ -143,7 +143,7 @@ class PriorSettings:
     ) -> PriorPredictor:
         """`prior` counting its points (`counts` pseudo-points), with `feasible` and
         `infeasible` more of them, centred per categorical choice with `choice_rates`."""
-        more = _encoded(space, feasible or [], infeasible or [])
+        more = _encoded(space, feasible or [], infeasible or []) if feasible or infeasible else ()
         counted = prior.counted(self.counts, *more)
         if not self.choice_rates:
             return counted
