@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import threading
 import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -31,6 +32,18 @@ from service_support import (
     postgres_admin_url,
     run_live_server,
 )
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Fail the run at once if importing a test module started a thread.
+
+    Such a thread runs beside the assertion rewriting of every later module, and CPython 3.11's
+    `ast.parse` beside a thread that parses fails at random ("AST constructor recursion depth
+    mismatch", python/cpython#106905): start servers and apps in fixtures, never at import.
+    """
+    started = [t.name for t in threading.enumerate() if t is not threading.main_thread()]
+    if started:
+        raise pytest.UsageError(f"collecting the tests started threads {started}: use fixtures")
 
 
 @pytest.fixture(scope="session")
