@@ -19,6 +19,8 @@ from pathlib import Path
 
 import httpx
 
+from server.cpus import format_cpu_list, spare_cores
+
 # A safety net against a service that hangs, not a measure of a slow start: the wait ends as
 # soon as the service answers or exits, and a niced service starting among busy processes
 # (its torch import) can take minutes; given up on earlier, it is killed mid-import.
@@ -80,17 +82,22 @@ def embedded_service(
     start_timeout: float = START_TIMEOUT_S,
     env: dict[str, str] | None = None,
     log_file: Path | None = None,
+    planner_cores: int = 0,
 ) -> Iterator[str]:
     """Run `cpkb serve` on a free loopback port; yields its base URL, stops it on exit.
 
     `db_url` defaults to the service's own default (CPKB_DATABASE_URL, else ./cpkb.db).
     With `quiet`, the service's log goes to `log_file` (default: a temporary file), and its end
-    is quoted if the service fails to start.
+    is quoted if the service fails to start. `planner_cores`: that many of this process's cores
+    are left to the planners and the service runs on the others (`server.cpus`), where there
+    are others and CPKB_CPU_CORES does not say otherwise.
     """
     command = [sys.executable, "-m", "cpkb", "serve", "--host", "127.0.0.1"]
     if db_url is not None:
         command += ["--db", db_url]
     child_env = {**os.environ, **(env or {})}
+    if "CPKB_CPU_CORES" not in child_env and (cores := spare_cores(planner_cores)) is not None:
+        child_env["CPKB_CPU_CORES"] = format_cpu_list(cores)
     with tempfile.TemporaryDirectory(prefix="cpkb-embedded-") as tmp:
         log_path = log_file if log_file is not None else Path(tmp) / "service.log"
         for _ in range(3):

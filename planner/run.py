@@ -114,6 +114,7 @@ class PlanResult:
     found_followed: int = 0  # other runs' found bindings it followed from the root
     explored: int = 0  # continuous values cp-bo took space-filling (`cp_bo.explore_below`)
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
+    suggest_cpu_s: float = 0.0  # the planner thread's CPU time in suggestions (with fetches)
     kb: str | None = None
     run: str | None = None
     notes: list[str] = field(default_factory=list)
@@ -157,13 +158,14 @@ def seed_everything(seed: int) -> None:
 @contextlib.contextmanager
 def knowledge_service(kb_url: str | None, db_url: str | None = None) -> Iterator[str]:
     """`kb_url` as is, or an embedded service for this run on `db_url` (default: the service's
-    own default database, CPKB_DATABASE_URL or ./cpkb.db, so knowledge persists across runs)."""
+    own default database, CPKB_DATABASE_URL or ./cpkb.db, so knowledge persists across runs),
+    kept off one core, which the planner gets to itself."""
     if kb_url is not None:
         yield kb_url
         return
     from cpkb.embedded import embedded_service
 
-    with embedded_service(db_url) as url:
+    with embedded_service(db_url, planner_cores=1) as url:
         yield url
 
 
@@ -260,6 +262,7 @@ def _plan_with_knowledge(
             result,
             kb_s=stats.kb_s,
             kb_parts={part: round(s, 6) for part, s in sorted(stats.kb_parts.items())},
+            suggest_cpu_s=round(stats.suggest_cpu_s, 6),
             types_activated=stats.types_activated,
             points_activated=stats.points_activated,
             types_active=stats.types_active,

@@ -11,9 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from server.cpus import parse_cpu_list
 from surrogate.config import AdditiveMode, SurrogateConfig
 
 DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
@@ -56,6 +57,10 @@ class Settings(BaseSettings):
     # machine it shares with planners (the embedded service of `cpkb plan` and `cpkb bench`)
     # they take the cores first and the fits the cycles left; alone on a machine, no change.
     surrogate_nice: int = Field(default=5, ge=0, le=19)
+    # The cores the service, its threads and its fit processes run on (`1`, `1-3`, `0,2`;
+    # Linux): the embedded service of `cpkb plan` and `cpkb bench` gets those its planners
+    # leave (server.cpus). Unset: any core.
+    cpu_cores: str | None = None
     surrogate_max_inducing: int = Field(default=SurrogateConfig.max_inducing, ge=8, le=1024)
     # A fit trains on at most this many of a type's points (0: all); see SurrogateConfig.
     surrogate_max_fit_points: int = Field(default=SurrogateConfig.max_fit_points, ge=0)
@@ -93,6 +98,13 @@ class Settings(BaseSettings):
     surrogate_pending_store: Literal["auto", "memory", "database"] = "auto"
     surrogate_claim_retry_s: float = Field(default=1.0, gt=0, le=60)
     replica_name: str | None = Field(default=None, min_length=1, max_length=128)
+
+    @field_validator("cpu_cores")
+    @classmethod
+    def _cpu_list(cls, value: str | None) -> str | None:
+        if value is not None:
+            parse_cpu_list(value)
+        return value
 
 
 def surrogate_overrides() -> dict[str, object]:

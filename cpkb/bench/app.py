@@ -10,7 +10,7 @@ import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from rich.console import Console
 from rich.table import Table
@@ -56,6 +56,9 @@ class BenchSettings:
     alone_dir: str | Path | None = None  # the same seeds run alone (default: OUT/alone)
     variants: Mapping[str, Variant] = field(default_factory=dict)  # named method + knobs
     ray_address: str | None = None  # run on this Ray cluster rather than a local pool
+    # The embedded service on the cores the workers leave (`spare`, where there are any) or on
+    # any core at a lower priority (`shared`).
+    service_cores: Literal["spare", "shared"] = "spare"
 
 
 def plan_run(
@@ -140,9 +143,12 @@ def _check_mixed(settings: BenchSettings) -> None:
 
 
 @contextlib.contextmanager
-def knowledge_service(kb_url: str | None, token: str | None) -> Iterator[ServiceKbs]:
+def knowledge_service(
+    kb_url: str | None, token: str | None, planner_cores: int = 0
+) -> Iterator[ServiceKbs]:
     """The shared service if given; else one embedded service on a temporary SQLite file for
-    the whole bench (each scenario still gets its own knowledge base, deleted after it)."""
+    the whole bench (each scenario still gets its own knowledge base, deleted after it), off
+    the first `planner_cores` cores (`cpkb.embedded.embedded_service`)."""
     if kb_url is not None:
         from client import CpkbClient, CpkbError
 
@@ -157,7 +163,9 @@ def knowledge_service(kb_url: str | None, token: str | None) -> Iterator[Service
 
     with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp, contextlib.ExitStack() as stack:
         try:
-            url = stack.enter_context(embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}"))
+            url = stack.enter_context(
+                embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}", planner_cores=planner_cores)
+            )
         except EmbeddedServiceError as exc:
             raise ValueError(str(exc)) from None
         yield ServiceKbs(url, token)  # the embedded service reads CPKB_TOKEN too
@@ -236,10 +244,11 @@ def execute_bench(settings: BenchSettings, run_fn: RunFn, console: Console) -> B
 def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchOutcome:
     scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
+    spare = settings.service_cores == "spare"
     service = (
         contextlib.nullcontext(None)
         if everything_done  # no service to start just to skip every run
-        else knowledge_service(settings.kb_url, settings.token)
+        else knowledge_service(settings.kb_url, settings.token, settings.workers if spare else 0)
     )
     pool = None
     embedded = settings.kb_url is None and settings.ray_address is None
@@ -265,7 +274,9 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             concurrent=settings.concurrent,
             mixed=settings.mixed,
             pool=pool,
-            service=surrogate_overrides() if embedded else {},
+            service=surrogate_overrides() | ({"cpu_cores": "spare"} if spare else {})
+            if embedded
+            else {},
         )
 
 

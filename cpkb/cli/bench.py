@@ -121,6 +121,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "scenario either way)",
     )
     parser.add_argument(
+        "--service-cores",
+        choices=("spare", "shared"),
+        default="spare",
+        help="where the embedded service and its fits run: on the cores the workers leave "
+        "(spare, default; Linux, where --workers leaves any), so that no planner waits for "
+        "a fit, or on any core at a lower priority (shared, as benches before it ran); "
+        "recorded with the results",
+    )
+    parser.add_argument(
         "--ray",
         metavar="ADDRESS",
         default=None,
@@ -230,6 +239,7 @@ def handle(args: argparse.Namespace) -> int:
         alone_dir=args.alone,
         variants=bench_variants(args.variants),
         ray_address=args.ray,
+        service_cores=args.service_cores,
     )
     try:
         if args.kb_url is not None and not args.summary_only:

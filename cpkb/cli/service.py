@@ -30,6 +30,12 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--host", help="address to bind (default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port (default 8000)")
     serve.add_argument("--log-level", default=None, help="uvicorn log level (default info)")
+    serve.add_argument(
+        "--cpu-cores",
+        metavar="LIST",
+        help="run the service and its fits on these cores only, e.g. 1 or 1-3 (Linux; default: "
+        "CPKB_CPU_CORES, else any core)",
+    )
     serve.set_defaults(handler=_serve)
 
     db = subparsers.add_parser("db", help="database maintenance")
@@ -119,6 +125,18 @@ def _settings(**overrides: Any) -> Any:
         raise CliError(f"bad setting {field}: {first['msg']}") from exc
 
 
+def _pin(cpu_cores: str) -> None:
+    """Keep the service (its threads and the fit worker it starts later) on `cpu_cores`."""
+    from server.cpus import parse_cpu_list, pin_process
+
+    if not hasattr(os, "sched_setaffinity"):
+        raise CliError("--cpu-cores needs Linux (this platform cannot pin a process to cores)")
+    try:
+        pin_process(parse_cpu_list(cpu_cores))
+    except OSError as exc:
+        raise CliError(f"cannot run on cores {cpu_cores}: {exc.strerror or exc}") from exc
+
+
 def _shown(url: str) -> str:
     from sqlalchemy.engine import make_url
 
@@ -154,8 +172,14 @@ def _prepare(store: Any, url: str) -> None:
 
 def _serve(args: argparse.Namespace) -> int:
     settings = _settings(
-        database_url=args.db, host=args.host, port=args.port, log_level=args.log_level
+        database_url=args.db,
+        host=args.host,
+        port=args.port,
+        log_level=args.log_level,
+        cpu_cores=args.cpu_cores,
     )
+    if settings.cpu_cores is not None:
+        _pin(settings.cpu_cores)
     # Take the port first, so that a port in use fails before the database is touched; then
     # check the database before importing the web stack (and the surrogates' torch).
     listener = _listen(settings.host, settings.port)

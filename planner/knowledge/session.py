@@ -92,6 +92,9 @@ class KnowledgeStats:
     model_fetches: int = 0
     kb_s: float = 0.0
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
+    # This thread's CPU time in suggestions: below kb_parts["suggest"] by the waits (other
+    # processes on its core, this process's other threads holding the GIL).
+    suggest_cpu_s: float = 0.0
     errors: int = 0
     prematched: int = 0
     live_points: int = 0  # other planners' points taken in during the run
@@ -561,7 +564,7 @@ class KnowledgeSession:
             seed=seed,
             n=n,
         )
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.thread_time()
         fetching = self.local.fetch_s if self.local is not None else 0.0
         try:
             answer = self._suggest_locally(request)
@@ -574,6 +577,7 @@ class KnowledgeSession:
             fetched = (self.local.fetch_s if self.local is not None else fetching) - fetching
             self.stats.spent("fetch", fetched)
             self.stats.spent("suggest", time.perf_counter() - started - fetched)
+            self.stats.suggest_cpu_s += time.thread_time() - cpu_started
         self.stats.suggestions += 1
         return answer
 

@@ -121,3 +121,43 @@ def test_db_upgrade_defaults_to_cpkb_db_in_the_current_directory(tmp_path: Path)
     out = cpkb("db", "upgrade", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "cpkb.db").exists()
+
+
+def _affinities(pid: int) -> list[set[int]]:
+    """The cores each thread of process `pid` may run on."""
+    return [os.sched_getaffinity(int(tid)) for tid in os.listdir(f"/proc/{pid}/task")]
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
+    reason="needs Linux CPU affinity and two cores",
+)
+def test_serve_runs_every_thread_on_the_cores_it_is_given(tmp_path: Path) -> None:
+    last = max(os.sched_getaffinity(0))
+    port = free_port()
+    command = [sys.executable, "-m", "cpkb", "serve", "--port", str(port), "--cpu-cores", str(last)]
+    command += ["--db", f"sqlite:///{tmp_path / 'kb.db'}"]
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    try:
+        assert wait_ready(f"http://127.0.0.1:{port}", server, timeout=START_TIMEOUT_S)
+        threads = _affinities(server.pid)
+    finally:
+        stop_process(server)
+    assert len(threads) > 1 and all(cores == {last} for cores in threads)
+
+
+def test_serve_with_a_bad_core_list_is_one_line_exit_2(tmp_path: Path) -> None:
+    out = cpkb("serve", "--cpu-cores", "1-x", "--port", str(free_port()), cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert "bad setting cpu_cores" in out.stderr and "'1-x'" in out.stderr
+    assert out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+    assert not (tmp_path / "cpkb.db").exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs Linux CPU affinity")
+def test_serve_on_cores_the_machine_lacks_is_one_line_exit_2(tmp_path: Path) -> None:
+    missing = str(max(os.sched_getaffinity(0)) + 4096)
+    out = cpkb("serve", "--cpu-cores", missing, "--port", str(free_port()), cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert f"cannot run on cores {missing}" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "cpkb.db").exists()

@@ -4,6 +4,7 @@ output directory pins them, and `cp-bo-paper` is a method like any other."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -89,3 +90,26 @@ def test_the_embedded_services_settings_are_pinned_with_the_results(
     assert json.loads((out / "bench.json").read_text())["service"] == service
     with pytest.raises(BenchConfigError, match="service"):
         run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50)
+
+
+@pytest.mark.slow
+def test_where_the_embedded_service_ran_is_pinned_with_the_results(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Off the workers' cores by default; a rerun on shared cores is another variant."""
+    from cpkb.cli import main
+
+    for name in [k for k in os.environ if k.startswith("CPKB_SURROGATE_")]:
+        monkeypatch.delenv(name)
+    out = tmp_path / "out"
+    argv = ["bench", "--tasks", "analytic:desk", "--methods", "quasi-random", "--workers", "1"]
+    assert main([*argv, "--seeds", "1", "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "bench.json").read_text())["service"] == {"cpu_cores": "spare"}
+    shared = [*argv, "--seeds", "2", "--out", str(out), "--quiet", "--service-cores", "shared"]
+    assert main(shared) == 2
+    assert len(_runs(out)) == 1
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "bench.json").write_text(json.dumps({"max_rollouts": 2000, "predecessor_rollouts": 30}))
+    before = [*argv, "--seeds", "1", "--out", str(old), "--quiet", "--service-cores", "shared"]
+    assert main(before) == 0
