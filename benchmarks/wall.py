@@ -3,10 +3,11 @@
 A guided run pays for its suggestions and usually simulates more per rollout (its bindings get
 past the cheap checks), so it is faster than the baseline only beyond some reduction in
 rollouts. Per kind and method this prints the means per run (wall time, rollouts, simulation,
-suggestions with their count and mean cost, the rest: loading the world, the tree, the other
-knowledge-base calls) and, against the baseline, the wall ratio, the rollout reduction reached
-and the reduction at which the wall times would be level (1 - the baseline's cost per rollout
-over the method's, both as mean wall over mean rollouts). Report wall times of runs made with
+suggestions with their count and mean cost, and the planner's CPU time per request where the
+runs recorded it, the rest: loading the world, the tree, the other knowledge-base calls) and,
+against the baseline, the wall ratio, the rollout reduction reached and the reduction at which
+the wall times would be level (1 - the baseline's cost per rollout over the method's, both as
+mean wall over mean rollouts). Report wall times of runs made with
 `--workers 1` only; `--seeds` picks them out of a joined directory.
 
     .venv/bin/python benchmarks/wall.py benchmarks/results/heldout19 --seeds 8000-8004
@@ -37,6 +38,7 @@ class Cell:
     sim_s: float
     suggest_s: float
     requests: float
+    suggest_cpu_s: float | None = None  # None: runs from before `suggest_cpu_s` was recorded
 
     @property
     def rest_s(self) -> float:
@@ -49,6 +51,14 @@ class Cell:
     @property
     def request_s(self) -> float:
         return self.suggest_s / self.requests if self.requests else 0.0
+
+    @property
+    def request_cpu_s(self) -> float | None:
+        """The planner thread's CPU time per request: below `request_s` by its waits for the
+        core (other processes on it) and the GIL (this process's other threads)."""
+        if self.suggest_cpu_s is None or not self.requests:
+            return None
+        return self.suggest_cpu_s / self.requests
 
 
 def seed_range(text: str) -> range:
@@ -86,6 +96,11 @@ def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
             sim_s=float(np.mean([r["sim_s"] for r in found])),
             suggest_s=float(np.mean([_suggest_s(r) for r in found])),
             requests=float(np.mean([r.get("suggestions", 0) for r in found])),
+            suggest_cpu_s=(
+                float(np.mean([r["suggest_cpu_s"] for r in found]))
+                if all("suggest_cpu_s" in r for r in found)
+                else None
+            ),
         )
         for key, found in grouped.items()
     }
@@ -109,10 +124,14 @@ def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
                 saved = 1.0 - cell.rollouts / base.rollouts
                 level = 1.0 - base.per_rollout_s / cell.per_rollout_s if cell.rollouts else 0.0
                 against = [f"{cell.wall_s / base.wall_s:.2f}", f"{saved:.0%}", f"{level:.0%}"]
+            cpu = cell.request_cpu_s
+            cost = f"{1000 * cell.request_s:.1f} ms" + (
+                f", CPU {1000 * cpu:.1f} ms" if cpu is not None else ""
+            )
             lines.append(
                 f"| {kind} | {method} | {cell.runs} | {cell.wall_s:.2f} s | {cell.rollouts:.1f} "
-                f"| {cell.sim_s:.2f} s | {cell.suggest_s:.2f} s ({cell.requests:.1f} x "
-                f"{1000 * cell.request_s:.1f} ms) | {cell.rest_s:.2f} s "
+                f"| {cell.sim_s:.2f} s | {cell.suggest_s:.2f} s ({cell.requests:.1f} x {cost}) "
+                f"| {cell.rest_s:.2f} s "
                 f"| {1000 * cell.per_rollout_s:.1f} ms | {' | '.join(against)} |"
             )
     return lines

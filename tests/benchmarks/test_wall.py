@@ -72,3 +72,15 @@ def test_bad_seeds_and_an_empty_selection_are_clear_errors(tmp_path, capsys):
     assert exc.value.code == 2 and "ends before it starts" in capsys.readouterr().err
     assert load_script("wall").main([str(tmp_path), "--seeds", "100-200"]) == 2
     assert "no runs in" in capsys.readouterr().err
+
+
+def test_the_planners_cpu_per_request_shows_where_every_run_recorded_it(tmp_path, capsys):
+    timed = [{**r, "suggest_cpu_s": r["kb_parts"].get("suggest", 0.0) / 2} for r in RUNS[:4]]
+    found = load_script("wall").cells(timed)
+    assert found[("regrasp", "guided")].request_cpu_s == pytest.approx(0.005)
+    assert found[("regrasp", "quasi-random")].request_cpu_s is None  # it asks nothing
+    mixed = load_script("wall").cells([*timed[:2], RUNS[2]])  # one run from before the field
+    assert mixed[("regrasp", "guided")].suggest_cpu_s is None
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in timed))
+    assert load_script("wall").main([str(tmp_path)]) == 0
+    assert "(15.0 x 10.0 ms, CPU 5.0 ms)" in capsys.readouterr().out
