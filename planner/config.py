@@ -339,6 +339,12 @@ class KnowledgeConfig:
     but for one background poll per rollout (BENCHMARKS.md, issue 23)."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
+    live_idle_max: int = 1
+    """With `live_points` or `follow_found`, a poll that brought nothing spaces the next one
+    out, doubling the rollouts between them up to this many; one that brings something goes
+    back to `live_every_rollouts` (`planner.knowledge.polls`). 1: every `live_every_rollouts`
+    rollouts. Each poll is a request read in a thread of the planner's process, which holds the
+    GIL meanwhile, and a planner alone polls for nothing."""
     live_hints: int = 8
     """With `live_points`, the newest other planners' feasible points kept per type, scored as
     candidates by this planner's MPF maximisation (each run's also merged into one, its latest
@@ -383,6 +389,7 @@ class KnowledgeConfig:
             match_chunk=1,
             fit_wait_s=0.0,
             live_every_rollouts=1,
+            live_idle_max=1,
             live_hints=0,
             live_hints_limit=1,
             stored_hints=0,

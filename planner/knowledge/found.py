@@ -18,6 +18,7 @@ from typing import Any
 
 from client.bindings import BindingIn, BindingsPage
 from client.models import MAX_LABEL, Value
+from planner.knowledge.polls import PollSchedule
 from planner.skeleton import Skeleton
 
 
@@ -36,16 +37,17 @@ class FoundBindings:
         run: str,
         live: bool,
         every_rollouts: int = 1,
+        idle_max: int = 1,
         background: bool = True,
         on_error: Callable[[str], None] = lambda message: None,
     ) -> None:
         self._client, self._kb, self._run = client, kb, run
         self._task, self._skeleton = task[:MAX_LABEL], skeleton_digest(skeleton)
         self.live = live
-        self.every_rollouts = every_rollouts
+        self.schedule = PollSchedule(every_rollouts, idle_max)
+        self.schedule.polled(0)  # `start` reads what is stored when the run begins
         self._on_error = on_error
         self._cursor: int | None = None
-        self._polled_at = 0
         self._executor = (
             ThreadPoolExecutor(1, thread_name_prefix="cpkb-found") if live and background else None
         )
@@ -93,12 +95,12 @@ class FoundBindings:
             if not poll.done():
                 return
             self._in_flight = None
-            self._take(poll.result())
-        if rollout - self._polled_at < self.every_rollouts:
+            self._answered(poll.result())
+        if not self.schedule.due(rollout):
             return
-        self._polled_at = rollout
+        self.schedule.polled(rollout)
         if self._executor is None:
-            self._take(self._poll(self._cursor))
+            self._answered(self._poll(self._cursor))
         else:
             self._in_flight = self._executor.submit(self._poll, self._cursor)
 
@@ -106,6 +108,10 @@ class FoundBindings:
         return self._client.bindings(
             self._kb, skeleton=self._skeleton, task=self._task, after=after, exclude_run=self._run
         )
+
+    def _answered(self, page: BindingsPage) -> None:
+        self._take(page)
+        self.schedule.answered(bool(page.bindings))
 
     def _take(self, page: BindingsPage) -> None:
         self._cursor = page.cursor if self._cursor is None else max(self._cursor, page.cursor)

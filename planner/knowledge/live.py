@@ -30,6 +30,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
 from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
+from planner.knowledge.polls import PollSchedule
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
 ExchangeFn = Callable[[list[PendingPoint], list[str]], list[PendingPoint]]
@@ -37,15 +38,22 @@ MAX_PAGES = 8  # pages one poll reads before it hands over what it has
 
 
 class LiveFeed:
-    def __init__(self, poll: PollFn, *, every_rollouts: int = 1, background: bool = True) -> None:
+    def __init__(
+        self,
+        poll: PollFn,
+        *,
+        every_rollouts: int = 1,
+        idle_max: int = 1,
+        background: bool = True,
+    ) -> None:
         self._poll = poll
-        self.every_rollouts = every_rollouts
+        self.schedule = PollSchedule(every_rollouts, idle_max)
         self._cursor: int | None = None
-        self._polled_at: int | None = None
         self._executor = (
             ThreadPoolExecutor(1, thread_name_prefix="cpkb-live") if background else None
         )
         self._in_flight: Future[tuple[int, list[LivePoint]]] | None = None
+        self._watching = False  # the poll in flight asked for types (not the cursor alone)
         self.polls = 0
         self.points = 0
 
@@ -66,9 +74,8 @@ class LiveFeed:
             return points
         if self._in_flight is not None:
             return points
-        due = self._polled_at is None or rollout - self._polled_at >= self.every_rollouts
-        if due and type_ids:
-            self._polled_at = rollout
+        if type_ids and self.schedule.due(rollout):
+            self.schedule.polled(rollout)
             self._submit(type_ids, self._cursor)
             points += self._land()
         return points
@@ -82,6 +89,7 @@ class LiveFeed:
 
     def _submit(self, type_ids: list[str], after: int | None) -> None:
         self.polls += 1
+        self._watching = bool(type_ids)
         job = _Poll(self._poll, type_ids, after)
         if self._executor is None:
             done: Future[tuple[int, list[LivePoint]]] = Future()
@@ -99,6 +107,8 @@ class LiveFeed:
         cursor, points = poll.result()
         self._cursor = cursor if self._cursor is None else max(self._cursor, cursor)
         self.points += len(points)
+        if self._watching:
+            self.schedule.answered(bool(points))
         return points
 
 

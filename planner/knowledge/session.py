@@ -204,6 +204,7 @@ class KnowledgeSession:
             LiveFeed(
                 lambda ids, after: client.points_since(kb, ids, after, exclude_run=self.run),
                 every_rollouts=self.config.live_every_rollouts,
+                idle_max=self.config.live_idle_max,
                 background=background,
             )
             if live and self.local is not None and hasattr(client, "points_since")
@@ -238,6 +239,7 @@ class KnowledgeSession:
                 run=self.run,
                 live=live,
                 every_rollouts=self.config.live_every_rollouts,
+                idle_max=self.config.live_idle_max,
                 background=background,
                 on_error=self.stats.event,
             )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from wait_support import wait_until
 
@@ -115,3 +117,40 @@ def test_a_type_another_planner_creates_becomes_active_at_once(live_kb, backgrou
         for session in (a, b):
             session.close()
         assert b.stats.errors == 0
+
+
+def test_a_planner_that_polls_for_nothing_polls_less_until_points_come(live_kb):
+    """`knowledge.live_idle_max`: empty answers space the polls out; A's point restores the pace."""
+    feasible = _feasible_grasps()
+    with CpkbClient(live_kb.url) as client:
+        a = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
+        a.prematch()
+        _grasp(a, BLOCKED, rollout=1)
+        sessions = {
+            idle_max: KnowledgeSession(
+                client,
+                live_kb.name,
+                analytic_world("desk"),
+                background=False,
+                config=dataclasses.replace(LIVE, live_idle_max=idle_max),
+            )
+            for idle_max in (1, 8)
+        }
+        for session in sessions.values():
+            session.prematch()
+        polls = {idle_max: s.live.polls for idle_max, s in sessions.items()}
+        for rollout in range(1, 41):
+            for session in sessions.values():
+                session.on_rollout_end(rollout)
+        assert sessions[1].live.polls - polls[1] == 40
+        assert sessions[8].live.polls - polls[8] <= 8 and sessions[8].live.schedule.gap == 8
+        # The found-bindings poll of the task follows the same rule.
+        assert sessions[1].found.schedule.gap == 1 and sessions[8].found.schedule.gap == 8
+
+        _grasp(a, feasible[0], rollout=2)
+        for rollout in range(41, 50):
+            sessions[8].on_rollout_end(rollout)
+        assert sessions[8].stats.live_points == 1 and sessions[8].live.schedule.gap <= 2
+        for session in (a, *sessions.values()):
+            session.close()
+            assert session.stats.errors == 0
