@@ -344,7 +344,8 @@ class KnowledgeConfig:
     out, doubling the rollouts between them up to this many; one that brings something goes
     back to `live_every_rollouts` (`planner.knowledge.polls`). 1: every `live_every_rollouts`
     rollouts. Each poll is a request read in a thread of the planner's process, which holds the
-    GIL meanwhile, and a planner alone polls for nothing."""
+    GIL meanwhile, and a planner alone polls for nothing; at 8 a planner alone took no
+    measurably less time per rollout (BENCHMARKS.md, `dev-idle`)."""
     live_hints: int = 8
     """With `live_points`, the newest other planners' feasible points kept per type, scored as
     candidates by this planner's MPF maximisation (each run's also merged into one, its latest
