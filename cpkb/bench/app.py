@@ -252,6 +252,9 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
     )
     pool = None
     embedded = settings.kb_url is None and settings.ray_address is None
+    # What the embedded service ran with, pinned with the results: its settings away from their
+    # defaults, and where it ran when not on shared cores.
+    embedded_settings = surrogate_overrides() | ({"cpu_cores": "spare"} if spare else {})
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import RayPool, WorkerKbs
 
@@ -274,9 +277,7 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             concurrent=settings.concurrent,
             mixed=settings.mixed,
             pool=pool,
-            service=surrogate_overrides() | ({"cpu_cores": "spare"} if spare else {})
-            if embedded
-            else {},
+            service=embedded_settings if embedded else {},
         )
 
 

@@ -92,8 +92,9 @@ class KnowledgeStats:
     model_fetches: int = 0
     kb_s: float = 0.0
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
-    # This thread's CPU time in suggestions: below kb_parts["suggest"] by the waits (other
-    # processes on its core, this process's other threads holding the GIL).
+    # This thread's CPU time in suggestions (a model fetch's CPU included, which kb_parts
+    # counts apart): below kb_parts["suggest"] by the waits, for its core (other processes) and
+    # for the GIL (this process's other threads).
     suggest_cpu_s: float = 0.0
     errors: int = 0
     prematched: int = 0
