@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from surrogate.domains import Domain, Value
-from surrogate.encoding import Columns, EncodingError, SpaceEncoder, value_column
+from surrogate.encoding import Columns, EncodingError, SpaceEncoder, encoder_for, value_column
 from surrogate.predictors import FeasibilityPredictor, RegressionPredictor
 
 
@@ -85,7 +85,7 @@ class ConstraintTerm:
         bind: Mapping[str, str],
         fixed: Mapping[str, Value],
     ) -> ConstraintTerm:
-        encoder = SpaceEncoder(space)
+        encoder = encoder_for(space)
         missing = [label for label in space if label not in bind]
         if missing:
             raise EncodingError(f"bind.{missing[0]}", "decision label is not bound")
@@ -144,7 +144,7 @@ class UCB:
         beta: float = 2.0,
         fixed: Mapping[str, Value] | None = None,
     ) -> UCB:
-        encoder = SpaceEncoder(space)
+        encoder = encoder_for(space)
         return cls(predictor, encoder, beta, _fixed_columns(encoder, {}, fixed or {}))
 
     def __call__(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:

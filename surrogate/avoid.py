@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surrogate.domains import CategoricalDomain, Domain, Value
-from surrogate.encoding import Columns, EncodingError, SpaceEncoder
+from surrogate.encoding import Columns, EncodingError, SpaceEncoder, encoder_for
 from surrogate.kernels import squared_distances
 
 
@@ -51,7 +51,7 @@ class AvoidSet:
         """`walls`: whether `spread` counts the continuous variables' walls as mirrors."""
         self.free = dict(free)
         self.fixed = dict(fixed)
-        self.encoder = SpaceEncoder(free, separations=False)
+        self.encoder = encoder_for(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.z_width) for v in self.encoder.vars}
         self._walls = {v.name: v.walls() & walls for v in self.encoder.vars}
         self._encoders: dict[tuple[str, ...], SpaceEncoder] = {}
@@ -79,7 +79,7 @@ class AvoidSet:
     def _sub_encoder(self, names: tuple[str, ...]) -> SpaceEncoder:
         if names not in self._encoders:
             domains = {name: self.free[name] for name in names}
-            self._encoders[names] = SpaceEncoder(domains, separations=False)
+            self._encoders[names] = encoder_for(domains, separations=False)
         return self._encoders[names]
 
     def _groups(

@@ -45,7 +45,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -83,6 +83,9 @@ class _Var:
     width: int
     table: np.ndarray | None = None  # categorical: (k, width) rows used for the choices
     circle: int | None = None  # a periodic heading's dimension, encoded on a circle
+    # continuous: the domain's bounds as arrays `(width,)`, made once instead of per batch
+    low: np.ndarray | None = field(default=None, compare=False)
+    span: np.ndarray | None = field(default=None, compare=False)
 
     @property
     def z_width(self) -> int:
@@ -150,7 +153,10 @@ class SpaceEncoder:
                 laid_out.append(_Var(name, domain, -1, table.shape[1], table))
             else:
                 circle = domain.heading if domain.periodic else None
-                laid_out.append(_Var(name, domain, -1, len(domain.low), circle=circle))
+                low, high = np.asarray(domain.low, float), np.asarray(domain.high, float)
+                laid_out.append(
+                    _Var(name, domain, -1, len(low), circle=circle, low=low, span=high - low)
+                )
         pairs = _framed_pairs(laid_out) if separations else []
         relative = {
             v.name
@@ -171,6 +177,10 @@ class SpaceEncoder:
         self.base_dim = start  # the variables' own columns; the separations follow them
         self.separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
         self.dim = start + sum(_pair_width(a, b) for a, b in self.separations)
+        self._pair_rules = [
+            (a.name, b.name, _shared_heading(a, b), _metric_scales(a, b))
+            for a, b in self.separations
+        ]
 
     def choice_rows(self) -> tuple[tuple[slice, np.ndarray], ...]:
         """Per categorical variable: its columns in Z and its distinct choice rows `(k, width)`
@@ -217,20 +227,17 @@ class SpaceEncoder:
             if var.table is not None:
                 unit = var.table[np.asarray(col, dtype=int)]
             else:
-                low = np.asarray(var.domain.low)
-                high = np.asarray(var.domain.high)
-                unit = (np.asarray(col, dtype=float).reshape(-1, var.width) - low) / (high - low)
-            units[var.name] = np.broadcast_to(unit, (n, var.width))
+                values = np.asarray(col, dtype=float).reshape(-1, var.width)
+                unit = (values - var.low) / var.span
+            if unit.shape[0] != n:
+                unit = np.broadcast_to(unit, (n, var.width))
+            units[var.name] = unit
             if var.in_z:
-                z[:, var.start : var.start + var.z_width] = var.to_z(units[var.name])
+                z[:, var.start : var.start + var.z_width] = var.to_z(unit)
         start = self.base_dim
-        for a, b in self.separations:
-            za, zb = units[a.name], units[b.name]
-            heading = _shared_heading(a, b)
-            if heading is None:
-                pair = np.abs(za - zb)
-            else:
-                pair = _relative_pose(za, zb, heading, _metric_scales(a, b))
+        for a, b, heading, scales in self._pair_rules:
+            za, zb = units[a], units[b]
+            pair = np.abs(za - zb) if heading is None else _relative_pose(za, zb, heading, scales)
             z[:, start : start + pair.shape[1]] = pair
             start += pair.shape[1]
         return z
@@ -254,6 +261,43 @@ class SpaceEncoder:
 
     def encode_points(self, points: Sequence[Mapping[str, Value]]) -> np.ndarray:
         return self.encode(self.columns(points))
+
+
+_SHARED: dict[tuple, SpaceEncoder] = {}
+_SHARED_MAX = 1024  # spaces kept; a long-lived service meets a few per type
+
+
+def encoder_for(space: Mapping[str, Domain], *, separations: bool = True) -> SpaceEncoder:
+    """A shared `SpaceEncoder` of `space`: building one costs more than encoding a batch with
+    it, and a suggestion needs one per constraint term and more for its search space. An
+    encoder is never changed once built, so one per distinct space serves every caller."""
+    key = (separations, *((name, _domain_key(d)) for name, d in space.items()))
+    encoder = _SHARED.get(key)
+    if encoder is None:
+        if len(_SHARED) >= _SHARED_MAX:
+            _SHARED.clear()
+        encoder = _SHARED[key] = SpaceEncoder(space, separations=separations)
+    return encoder
+
+
+def _domain_key(domain: Domain) -> tuple:
+    """A hashable stand-in for `domain` (a categorical's embedding is a mapping; a domain built
+    by hand may hold lists)."""
+    if isinstance(domain, CategoricalDomain):
+        embedding = domain.embedding
+        table = None if embedding is None else tuple((k, tuple(v)) for k, v in embedding.items())
+        return ("categorical", tuple(domain.choices), table)
+    scale = None if domain.scale is None else tuple(domain.scale)
+    return (
+        "continuous",
+        tuple(domain.low),
+        tuple(domain.high),
+        domain.frame,
+        domain.heading,
+        scale,
+        domain.relative_only,
+        domain.periodic,
+    )
 
 
 def _framed_pairs(variables: Sequence[_Var]) -> list[tuple[_Var, _Var]]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Protocol
 
 import numpy as np
@@ -102,22 +103,33 @@ class PriorPredictor:
 
     def _choice_centres(self, z: np.ndarray) -> np.ndarray:
         """`(n,)` the centre of each row of `z`, by the rate of its categorical choices."""
+        c = self.center
+        if self._choice_rates is None:
+            return np.full(len(z), c)
+        columns, keys, rates, best = self._choice_rates
+        same = same_rows(z[:, columns], keys)
+        row_rates = np.where(same.any(axis=1), rates[same.argmax(axis=1)], c)
+        return c * row_rates / best
+
+    @cached_property
+    def _choice_rates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+        """The choices' columns in Z, the distinct choice rows of the points `(k, w)`, their
+        rates `(k,)` and the best rate: a function of the points alone, asked for every batch
+        of candidates a suggestion scores. None where the centre is `center` everywhere."""
         columns = np.concatenate([np.arange(s.start, s.stop) for s, _ in self.choices])
         points = np.vstack([self.feasible, self.infeasible])
-        c, s = self.center, self.strength
-        if len(points) == 0 or len(columns) == z.shape[1]:
+        if len(points) == 0 or len(columns) == points.shape[1]:
             # With nothing but choices as inputs, the kernel's counts are the choice's own
             # already: a centre set by them would count every point twice.
-            return np.full(len(z), c)
+            return None
+        c, s = self.center, self.strength
         keys, inverse = np.unique(points[:, columns], axis=0, return_inverse=True)
         feasible = np.bincount(inverse.ravel()[: len(self.feasible)], minlength=len(keys))
         counts = np.bincount(inverse.ravel(), minlength=len(keys))
         rates = (s * c + feasible) / (s + counts)
         possible = math.prod(len(rows) for _, rows in self.choices)
         best = max(rates.max(), c) if len(keys) < possible else rates.max()
-        same = same_rows(z[:, columns], keys)
-        row_rates = np.where(same.any(axis=1), rates[same.argmax(axis=1)], c)
-        return c * row_rates / best
+        return columns, keys, rates, best
 
     def with_base_rate(self, feasible: int = 0, infeasible: int = 0) -> PriorPredictor:
         """This prior centred on its type's rate of feasible points, Laplace-smoothed:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from surrogate.domains import Domain, Value
-from surrogate.encoding import SpaceEncoder
+from surrogate.encoding import SpaceEncoder, encoder_for
 from surrogate.models import MIN_POINTS, Fit, fit_classifier
 from surrogate.predictors import FeasibilityPredictor, PriorPredictor, RecentPoints, UnseenChoices
 from surrogate.suggest import TypeModel
@@ -84,7 +84,7 @@ class InMemoryModels:
         """Points `(x by decision label, feasible)` of a type (created with `space` if new)."""
         entry = self._types.get(type_id)
         if entry is None:
-            encoder = SpaceEncoder(space)
+            encoder = encoder_for(space)
             entry = _Type(dict(space), encoder, np.zeros((0, encoder.dim)), np.zeros(0, bool))
             self._types[type_id] = entry
         if points:

@@ -21,7 +21,7 @@ import numpy as np
 
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints
 from surrogate.domains import Domain, Value, domain_to_json, space_from_json
-from surrogate.encoding import EncodingError, SpaceEncoder, same_domain, value_column
+from surrogate.encoding import EncodingError, encoder_for, same_domain, value_column
 from surrogate.optimize import OptimizerConfig, maximize_batch, space_filling
 from surrogate.pending import Pending
 from surrogate.predictors import FeasibilityPredictor
@@ -236,7 +236,7 @@ def _mpf_points(
         preferred=preferred,
     )
     xs = [s.x for s in found]
-    per_term = mpf.per_term(SpaceEncoder(request.space).columns(xs))
+    per_term = mpf.per_term(encoder_for(request.space).columns(xs))
     return [_point(x, terms, per_term[:, i]) for i, x in enumerate(xs)]
 
 

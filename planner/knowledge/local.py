@@ -40,7 +40,7 @@ from planner.config import KnowledgeConfig
 from surrogate import snapshot
 from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
-from surrogate.encoding import SpaceEncoder
+from surrogate.encoding import encoder_for
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.predictors import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
@@ -138,16 +138,16 @@ class PriorSettings:
         self,
         prior: PriorPredictor,
         space: Mapping[str, Domain],
-        feasible: list[dict[str, Value]] | None = None,
-        infeasible: list[dict[str, Value]] | None = None,
+        feasible: np.ndarray | None = None,
+        infeasible: np.ndarray | None = None,
     ) -> PriorPredictor:
-        """`prior` counting its points (`counts` pseudo-points), with `feasible` and
-        `infeasible` more of them, centred per categorical choice with `choice_rates`."""
-        more = _encoded(space, feasible or [], infeasible or []) if feasible or infeasible else ()
-        counted = prior.counted(self.counts, *more)
+        """`prior` counting its points (`counts` pseudo-points), with encoded `feasible` `(a, D)`
+        and `infeasible` `(b, D)` more of them, centred per categorical choice with
+        `choice_rates`."""
+        counted = prior.counted(self.counts, feasible, infeasible)
         if not self.choice_rates:
             return counted
-        return counted.by_choice(SpaceEncoder(space).choice_rows())
+        return counted.by_choice(encoder_for(space).choice_rows())
 
 
 @dataclass
@@ -165,6 +165,10 @@ class _Model:
     evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
     _predictor: FeasibilityPredictor | None = None
     _combined: FeasibilityPredictor | None = None
+    # `own` and `others` encoded, row for row: both lists only grow, and every new point
+    # would otherwise re-encode all of them for the next suggestion.
+    _own_z: np.ndarray | None = None
+    _others_z: np.ndarray | None = None
 
     @property
     def fetched(self) -> bool:
@@ -184,12 +188,10 @@ class _Model:
     def _own_prior(self) -> PriorPredictor:
         """The stated prior on this run's own points alone: what it knows without the model."""
         assert self.evidence is not None
-        return self._stated_prior(*_by_label(self.evidence.points))
+        return self._stated_prior(*_encoded(self.space, *_by_label(self.evidence.points)))
 
-    def _stated_prior(
-        self, feasible: list[dict[str, Value]], infeasible: list[dict[str, Value]]
-    ) -> PriorPredictor:
-        prior = PriorPredictor(*_encoded(self.space, feasible, infeasible))
+    def _stated_prior(self, feasible: np.ndarray, infeasible: np.ndarray) -> PriorPredictor:
+        prior = PriorPredictor(feasible, infeasible)
         if self.prior.base_rate:
             prior = prior.with_base_rate()
         return self.prior.counted(prior, self.space) if self.prior.counts > 0 else prior
@@ -203,7 +205,7 @@ class _Model:
         return self._combined
 
     def _weigh_in(self) -> FeasibilityPredictor:
-        feasible, infeasible = _by_label((x, ok) for _, x, ok in self.own + self.others)
+        feasible, infeasible = self._since()
         if not self.fetched:
             return self._stated_prior(feasible, infeasible)
         fitted = self.fitted
@@ -212,15 +214,24 @@ class _Model:
         if self.prior.counts > 0 and (prior := stated_prior(fitted)) is not None:
             # Counted, the points since the service's prior are more of its points.
             return self.prior.counted(prior, self.space, feasible, infeasible)
-        if not feasible and not infeasible:
+        if not len(feasible) and not len(infeasible):
             return fitted
-        return RecentPoints(fitted, *_encoded(self.space, feasible, infeasible))
+        return RecentPoints(fitted, feasible, infeasible)
+
+    def _since(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points since the fetch (this run's, then other planners'), encoded: the feasible
+        ones `(a, D)`, then the infeasible ones `(b, D)`, each in the order they came."""
+        self._own_z = _grown(self._own_z, self.space, [x for _, x, _ in self.own])
+        self._others_z = _grown(self._others_z, self.space, [x for _, x, _ in self.others])
+        rows = np.vstack([self._own_z, self._others_z])
+        ok = np.array([ok for _, _, ok in self.own + self.others], dtype=bool)
+        return rows[ok], rows[~ok]
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
         """One of this run's own points; with `evidence`, first scored by the model and by the
         stated prior on this run's earlier points, as each predicted it before it was known."""
         if self.evidence is not None:
-            z = SpaceEncoder(self.space).encode_points([dict(x)])
+            z = encoder_for(self.space).encode_points([dict(x)])
             p_model = float(self.model().proba(z)[0])
             p_own = float(self._own_prior().proba(z)[0])
             self.evidence.observe(x, feasible, p_model, p_own)
@@ -239,13 +250,25 @@ def _by_label(
     return feasible, infeasible
 
 
+def _grown(
+    rows: np.ndarray | None, space: Mapping[str, Domain], points: list[dict[str, Value]]
+) -> np.ndarray:
+    """`rows` (the first points, encoded) with the points after them encoded and appended."""
+    encoder = encoder_for(space)
+    if rows is None:
+        rows = np.zeros((0, encoder.dim))
+    if len(points) > len(rows):
+        rows = np.vstack([rows, encoder.encode_points(points[len(rows) :])])
+    return rows
+
+
 def _encoded(
     space: Mapping[str, Domain],
     feasible: list[dict[str, Value]],
     infeasible: list[dict[str, Value]],
 ) -> tuple[np.ndarray, np.ndarray]:
     """Both lists in the type's GP inputs, `(a, D)` and `(b, D)`."""
-    encoder = SpaceEncoder(space)
+    encoder = encoder_for(space)
     empty = np.zeros((0, encoder.dim))
     return (
         encoder.encode_points(feasible) if feasible else empty,
@@ -347,7 +370,7 @@ class LocalSurrogates:
             return False
         if type_id not in self._models:
             own_space = space_from_json({label: d.model_dump() for label, d in space.items()})
-            none = np.zeros((0, SpaceEncoder(own_space).dim))
+            none = np.zeros((0, encoder_for(own_space).dim))
             self._models[type_id] = _Model(
                 own_space,
                 PriorPredictor(none, none),

@@ -49,7 +49,7 @@ from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, W
 from surrogate.additive import Groups, term_groups
 from surrogate.config import AdditiveMode, SurrogateConfig
 from surrogate.domains import Domain, space_from_json
-from surrogate.encoding import SpaceEncoder
+from surrogate.encoding import SpaceEncoder, encoder_for
 from surrogate.models import MIN_POINTS, Fit, fit_classifier, warm_up
 from surrogate.optimize import OptimizerConfig
 from surrogate.pending import Pending, PendingBook
@@ -309,7 +309,7 @@ class SurrogateEngine:
     def predict(self, kb: str, type_id: str, xs: list[dict]) -> list[float]:
         """P(feasible) of `xs` (decision label -> value) under the type's current model."""
         handle = self.model(kb, type_id)
-        z = SpaceEncoder(handle.space).encode_points(xs)
+        z = encoder_for(handle.space).encode_points(xs)
         return [float(p) for p in handle.predictor.proba(z)]
 
     def predict_with_uncertainty(
@@ -319,7 +319,7 @@ class SurrogateEngine:
         unsure the same model is there, its latent posterior sd over the prior's
         (`FeasibilityPredictor.uncertainty`); one model and one encoding for both."""
         handle = self.model(kb, type_id)
-        z = SpaceEncoder(handle.space).encode_points(xs)
+        z = encoder_for(handle.space).encode_points(xs)
         p, sd = handle.predictor.proba(z), handle.predictor.uncertainty(z)
         return [float(v) for v in p], [float(v) for v in sd]
 
@@ -397,7 +397,7 @@ class SurrogateEngine:
         caller is the coordinator about to fit it)."""
         points = load_training_points(self.store, *key)
         space = space_from_json({label: d.model_dump() for label, d in points.space.items()})
-        encoder = SpaceEncoder(space)
+        encoder = encoder_for(space)
         z = encoder.encode_points(points.x) if points.x else np.zeros((0, encoder.dim))
         y = np.asarray(points.feasible, dtype=bool)
         entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y), points.origin)

@@ -27,7 +27,7 @@ from server.graphs import GraphError, check_xs
 from server.services.kbs import kb_id
 from server.surrogates.engine import SurrogateEngine
 from surrogate import snapshot
-from surrogate.encoding import EncodingError, SpaceEncoder
+from surrogate.encoding import EncodingError, encoder_for
 from surrogate.optimize import SpaceExhausted
 from surrogate.suggest import InvalidRequest, SuggestRequest
 from surrogate.suggest import suggest as suggest_point
@@ -80,7 +80,7 @@ def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> 
     handle = engine.model(kb, type_id)
     try:
         check_xs(body.x, handle.space, where="x")  # as a post of these points would
-        encoder = SpaceEncoder(handle.space)
+        encoder = encoder_for(handle.space)
         z = encoder.encode(encoder.columns(body.x, where="x"))
     except (EncodingError, GraphError) as exc:
         raise InvalidInput(str(exc)) from exc

@@ -9,11 +9,18 @@ from pydantic import ValidationError
 from surrogate.domains import (
     CategoricalDomain,
     ContinuousDomain,
+    categorical,
     continuous,
     domain_from_json,
     domain_to_json,
 )
-from surrogate.encoding import EncodingError, SpaceEncoder, metric_reach, same_domain
+from surrogate.encoding import (
+    EncodingError,
+    SpaceEncoder,
+    encoder_for,
+    metric_reach,
+    same_domain,
+)
 
 DIRS = ["front", "right", "top", "back", "left"]
 APPROACH = {
@@ -343,3 +350,25 @@ def test_a_periodic_heading_decodes_back_to_its_value() -> None:
 def test_the_surrogate_refuses_a_periodic_pose_without_a_heading() -> None:
     with pytest.raises(ValueError, match="periodic needs a heading"):
         continuous([0.0] * 3, [1.0] * 3, "shelf", None, None, False, True)
+
+
+def test_a_shared_encoder_serves_every_copy_of_a_space_and_encodes_as_a_new_one() -> None:
+    """`encoder_for`: one encoder per distinct space (an embedding or a frame makes another),
+    giving exactly what an encoder built afresh gives."""
+    space = {
+        "g": categorical(["top", "side"], {"top": [0, 0, 1], "side": [1, 0, 0]}),
+        "a": continuous([0, 0, 0], [1, 1, 1], frame="tray", heading=2),
+        "b": continuous([0, 0, 0], [1, 1, 1], frame="tray", heading=2),
+    }
+    shared = encoder_for(space)
+    assert encoder_for(dict(space)) is shared
+    assert encoder_for(space, separations=False) is not shared
+    other = {**space, "g": categorical(["top", "side"], {"top": [0, 0, 1], "side": [0, 1, 0]})}
+    assert encoder_for(other) is not shared
+    points = [
+        {"g": "side", "a": [0.2, 0.3, 0.9], "b": [0.7, 0.1, 0.05]},
+        {"g": "top", "a": [0.0, 1.0, 0.5], "b": [0.5, 0.5, 0.5]},
+    ]
+    np.testing.assert_array_equal(
+        shared.encode_points(points), SpaceEncoder(space).encode_points(points)
+    )

@@ -41,7 +41,7 @@ class MctsBoSampler:
     def propose(self, ctx: SampleContext) -> Value:
         from surrogate.acquisition import ucb
         from surrogate.domains import space_from_json
-        from surrogate.encoding import SpaceEncoder
+        from surrogate.encoding import encoder_for
         from surrogate.models import fit_regression
         from surrogate.optimize import maximize
 
@@ -61,7 +61,7 @@ class MctsBoSampler:
         var = ctx.var.var
         space = space_from_json({var: domain.model_dump()})
         values = ctx.siblings[-config.max_children_fitted :]
-        z = SpaceEncoder(space).encode_points([{var: v} for v in values])
+        z = encoder_for(space).encode_points([{var: v} for v in values])
         key = (var, tuple(sorted((k, str(v)) for k, v in ctx.path.items())))
         seed = int(ctx.rng.integers(2**31 - 1))
         fit = fit_regression(

@@ -105,6 +105,45 @@ def test_own_points_weigh_in_before_the_next_fetch(counts):
         assert again.x != first.x
 
 
+@pytest.mark.parametrize("counts", [0.0, 2.0])
+def test_points_weighed_in_one_by_one_predict_as_all_at_once(counts):
+    """A model keeps the points since its fetch encoded as they come (`_Model._since`): after
+    this planner's and another's points taken one at a time, with suggestions between them,
+    it predicts exactly as a planner that took them all before asking."""
+    request = _grasp_request()
+
+    def planner() -> LocalSurrogates:
+        fetch = fetch_from(_memory(), OPTIMIZER)
+        return LocalSurrogates(fetch, background=False, prior=PriorSettings(counts=counts))
+
+    stepwise, at_once = planner(), planner()
+    first = stepwise.suggest(request, rollout=0, stored=0)
+    at_once.suggest(request, rollout=0, stored=0)
+    constraint = request.constraints[0]
+    type_id = constraint.type_id
+    xs = [
+        {label: point.x[var] for label, var in constraint.bind.items()}
+        for point in [first, *first.batch]
+    ]
+
+    def take(local: LocalSurrogates, i: int, x: dict) -> None:
+        if i % 3 == 2:
+            local.learn(type_id, point_id=10_000 + i, x=x, feasible=False)
+        else:
+            local.note(type_id, x, feasible=i % 3 == 0, batch=1)
+
+    for i, x in enumerate(xs):
+        take(stepwise, i, x)
+        stepwise.suggest(request, rollout=i + 1, stored=0)
+    for i, x in enumerate(xs):
+        take(at_once, i, x)
+    z = SpaceEncoder(stepwise._models[type_id].space).encode_points(xs)
+    np.testing.assert_array_equal(
+        stepwise._models[type_id].predictor().proba(z),
+        at_once._models[type_id].predictor().proba(z),
+    )
+
+
 @pytest.mark.parametrize("base_rate", [False, True])
 def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(base_rate):
     """`knowledge.prior_base_rate`: a fetched stated prior, with this planner's own failures
