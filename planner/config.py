@@ -245,6 +245,10 @@ class KnowledgeConfig:
     """Rollouts between two fetches of one type's model (a fit takes longer than a few)."""
     match_chunk: int = 500
     """Graphs per types/match request (the contract allows up to 1000)."""
+    post_linger_ms: float = 0.0
+    """The background poster waits this long after a rollout's points for later ones to join
+    them in one request (`planner.knowledge.poster`); a wait for a batch to be stored cuts it
+    short. 0: each batch goes as soon as the poster is free."""
     deterministic: bool = False
     """Wait for each refit this planner's points ask for, and post and fetch in the foreground:
     the same seed on a fresh knowledge base gives the same run, at the cost of the waits."""
@@ -388,6 +392,7 @@ class KnowledgeConfig:
             self,
             refresh_rollouts=0,
             match_chunk=1,
+            post_linger_ms=0.0,
             fit_wait_s=0.0,
             live_every_rollouts=1,
             live_idle_max=1,

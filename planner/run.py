@@ -115,6 +115,9 @@ class PlanResult:
     explored: int = 0  # continuous values cp-bo took space-filling (`cp_bo.explore_below`)
     kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
     suggest_cpu_s: float = 0.0  # the planner thread's CPU time in suggestions (with fetches)
+    # CPU time of this process's other threads during the search (posting points, polls, model
+    # refreshes): each holds the GIL while it runs, so the search waits for it
+    background_cpu_s: float = 0.0
     kb: str | None = None
     run: str | None = None
     notes: list[str] = field(default_factory=list)
@@ -311,7 +314,9 @@ def _search(
 
     config = request.config.search
     search = PWUCT(world, sampler, seed=request.seed, config=config, observer=session)
+    process_cpu, thread_cpu = time.process_time(), time.thread_time()
     outcome = search.run(request.max_rollouts, stop_at_first=request.stop_at_first, progress=report)
+    background_cpu = (time.process_time() - process_cpu) - (time.thread_time() - thread_cpu)
     return PlanResult(
         task=world.name,
         method=request.method,
@@ -326,6 +331,7 @@ def _search(
         bindings=outcome.bindings,
         best_depth=outcome.best_depth,
         notes=_notes(outcome),
+        background_cpu_s=round(max(background_cpu, 0.0), 6),
         config=request.config.to_dict(),
     )
 

@@ -1,5 +1,9 @@
 """Posting points off the search's critical path: batches per rollout, one background thread.
 
+The thread may linger after a batch arrives for more to join it (`linger_s`): each request costs
+the planner's process CPU time while the thread holds the GIL, and a fast search hands over a
+batch every few milliseconds. Whoever waits for a batch to be stored cuts the lingering short.
+
 Each point carries an idempotency key (run, rollout, index), so the client's retries never store
 a point twice. A failed post is counted, never raised into the search: the binding search goes on
 without the knowledge base rather than crash.
@@ -20,11 +24,19 @@ log = logging.getLogger(__name__)
 PostFn = Callable[[Sequence[PointIn]], object]
 
 
+class _Flush:
+    """Put by `wait_for`: send what is queued now, without lingering."""
+
+
+_FLUSH = _Flush()
+
+
 class PointPoster:
-    def __init__(self, post: PostFn, *, background: bool = True) -> None:
+    def __init__(self, post: PostFn, *, background: bool = True, linger_s: float = 0.0) -> None:
         self._post = post
         self._background = background
-        self._queue: queue.Queue[tuple[int, list[PointIn]] | None] = queue.Queue()
+        self._linger_s = linger_s
+        self._queue: queue.Queue[tuple[int, list[PointIn]] | _Flush | None] = queue.Queue()
         self.submitted = 0  # batches handed over so far; a batch's number is its rank
         self.done = 0  # batches sent (or given up), in order
         self.posted = 0
@@ -49,6 +61,8 @@ class PointPoster:
 
     def wait_for(self, number: int) -> None:
         """Block until batch `number` has been sent (or given up)."""
+        if self._thread is not None and self.done < number:
+            self._queue.put(_FLUSH)
         with self._sent:
             self._sent.wait_for(lambda: self.done >= number or self._thread is None)
 
@@ -64,19 +78,29 @@ class PointPoster:
             item = self._queue.get()
             if item is None:
                 return
+            if isinstance(item, _Flush):
+                continue
             number, batch = item
-            # Merge whatever else is waiting into one request: fewer round trips under load.
+            # Merge what else arrives within the linger (or is waiting) into one request.
+            deadline = time.monotonic() + self._linger_s
+            closing = False
             while True:
+                wait = deadline - time.monotonic()
                 try:
-                    more = self._queue.get_nowait()
+                    more = self._queue.get(timeout=wait) if wait > 0 else self._queue.get_nowait()
                 except queue.Empty:
                     break
                 if more is None:
-                    self._send(number, batch)
-                    return
+                    closing = True
+                    break
+                if isinstance(more, _Flush):
+                    deadline = time.monotonic()
+                    continue
                 number = more[0]
                 batch.extend(more[1])
             self._send(number, batch)
+            if closing:
+                return
 
     def _send(self, number: int, points: list[PointIn]) -> None:
         started = time.perf_counter()

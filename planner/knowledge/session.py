@@ -165,7 +165,11 @@ class KnowledgeSession:
         self.run = run or uuid.uuid4().hex[:16]
         self.worker = worker
         self.stats = KnowledgeStats()
-        self.poster = PointPoster(lambda pts: client.post_points(kb, pts), background=background)
+        self.poster = PointPoster(
+            lambda pts: client.post_points(kb, pts),
+            background=background,
+            linger_s=self.config.post_linger_ms / 1000.0,
+        )
         self._encodings = Encodings(
             world.geometry,
             square_grasps=self.config.square_grasps,
