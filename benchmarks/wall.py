@@ -4,7 +4,8 @@ A guided run pays for its suggestions and usually simulates more per rollout (it
 past the cheap checks), so it is faster than the baseline only beyond some reduction in
 rollouts. Per kind and method this prints the means per run (wall time, rollouts, simulation,
 suggestions with their count and mean cost, and the planner's CPU time per request where the
-runs recorded it, the rest: loading the world, the tree, the other knowledge-base calls) and,
+runs recorded it, the rest: loading the world, the tree, the other knowledge-base calls, with
+the CPU time the process's background threads took where recorded) and,
 against the baseline, the wall ratio, the rollout reduction reached and the reduction at which
 the wall times would be level (1 - the baseline's cost per rollout over the method's, both as
 mean wall over mean rollouts). Report wall times of runs made with
@@ -39,6 +40,7 @@ class Cell:
     suggest_s: float
     requests: float
     suggest_cpu_s: float | None = None  # None: runs from before `suggest_cpu_s` was recorded
+    background_cpu_s: float | None = None  # None: runs from before it was recorded
 
     @property
     def rest_s(self) -> float:
@@ -80,6 +82,13 @@ def _suggest_s(record: dict) -> float:
     return float(parts.get("suggest", 0.0))
 
 
+def _mean_of(records: list[dict], key: str) -> float | None:
+    """The mean of a field every record holds; None where some run predates it."""
+    if not all(key in r for r in records):
+        return None
+    return float(np.mean([r[key] for r in records]))
+
+
 def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
     """(kind, method) -> its means; "all" pools the kinds."""
     grouped: dict[tuple[str, str], list[dict]] = defaultdict(list)
@@ -96,11 +105,8 @@ def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
             sim_s=float(np.mean([r["sim_s"] for r in found])),
             suggest_s=float(np.mean([_suggest_s(r) for r in found])),
             requests=float(np.mean([r.get("suggestions", 0) for r in found])),
-            suggest_cpu_s=(
-                float(np.mean([r["suggest_cpu_s"] for r in found]))
-                if all("suggest_cpu_s" in r for r in found)
-                else None
-            ),
+            suggest_cpu_s=_mean_of(found, "suggest_cpu_s"),
+            background_cpu_s=_mean_of(found, "background_cpu_s"),
         )
         for key, found in grouped.items()
     }
@@ -124,14 +130,17 @@ def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
                 saved = 1.0 - cell.rollouts / base.rollouts
                 level = 1.0 - base.per_rollout_s / cell.per_rollout_s if cell.rollouts else 0.0
                 against = [f"{cell.wall_s / base.wall_s:.2f}", f"{saved:.0%}", f"{level:.0%}"]
-            cpu = cell.request_cpu_s
+            cpu, background = cell.request_cpu_s, cell.background_cpu_s
             cost = f"{1000 * cell.request_s:.1f} ms" + (
                 f", CPU {1000 * cpu:.1f} ms" if cpu is not None else ""
+            )
+            rest = f"{cell.rest_s:.2f} s" + (
+                f" (background CPU {background:.3f} s)" if background else ""
             )
             lines.append(
                 f"| {kind} | {method} | {cell.runs} | {cell.wall_s:.2f} s | {cell.rollouts:.1f} "
                 f"| {cell.sim_s:.2f} s | {cell.suggest_s:.2f} s ({cell.requests:.1f} x {cost}) "
-                f"| {cell.rest_s:.2f} s "
+                f"| {rest} "
                 f"| {1000 * cell.per_rollout_s:.1f} ms | {' | '.join(against)} |"
             )
     return lines

@@ -84,3 +84,19 @@ def test_the_planners_cpu_per_request_shows_where_every_run_recorded_it(tmp_path
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in timed))
     assert load_script("wall").main([str(tmp_path)]) == 0
     assert "(15.0 x 10.0 ms, CPU 5.0 ms)" in capsys.readouterr().out
+
+
+def test_the_background_threads_cpu_shows_beside_the_rest_where_every_run_recorded_it(
+    tmp_path, capsys
+):
+    timed = [{**r, "background_cpu_s": 0.25 if r["method"] == "guided" else 0.0} for r in RUNS]
+    found = load_script("wall").cells(timed)
+    assert found[("regrasp", "guided")].background_cpu_s == pytest.approx(0.25)
+    assert (
+        load_script("wall").cells([*timed[:2], RUNS[2]])[("all", "guided")].background_cpu_s is None
+    )
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in timed))
+    assert load_script("wall").main([str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "(background CPU 0.250 s)" in out
+    assert out.count("background CPU") == out.count("| guided |")
