@@ -31,6 +31,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from cpkb.bench.scenarios import seed_range
 from surrogate.suggest import TypeModel, suggest
 
 
@@ -143,23 +144,12 @@ def replay(path: Path, repeats: int) -> int:
     return 0
 
 
-def _seeds(text: str) -> range:
-    first, _, last = text.partition("-")
-    try:
-        low, high = int(first), int(last or first)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seeds: {text!r} is not FIRST-LAST") from None
-    if high < low:
-        raise argparse.ArgumentTypeError(f"seeds: {text!r} ends before it starts")
-    return range(low, high + 1)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
     keep = commands.add_parser("record", help="run transfer scenarios and keep their requests")
     keep.add_argument("--tasks", required=True, help="task files or shipped names, comma-separated")
-    keep.add_argument("--seeds", type=_seeds, default=range(7300, 7302), help="FIRST-LAST")
+    keep.add_argument("--seeds", type=seed_range, default=range(7300, 7302), help="FIRST-LAST")
     keep.add_argument("--out", type=Path, required=True)
     again = commands.add_parser("replay", help="answer recorded requests again, timed")
     again.add_argument("recording", type=Path)

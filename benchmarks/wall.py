@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from cpkb.bench.results import ResultStore
-from cpkb.bench.scenarios import task_kinds
+from cpkb.bench.scenarios import seed_range, task_kinds
 from cpkb.bench.stats import ordered, rollouts_metric
 
 
@@ -61,18 +61,6 @@ class Cell:
         if self.suggest_cpu_s is None or not self.requests:
             return None
         return self.suggest_cpu_s / self.requests
-
-
-def seed_range(text: str) -> range:
-    """`8000-8004` (both ends included) or a single seed."""
-    first, _, last = text.partition("-")
-    try:
-        low, high = int(first), int(last or first)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seeds: {text!r} is not FIRST-LAST") from None
-    if high < low:
-        raise argparse.ArgumentTypeError(f"seeds: {text!r} ends before it starts")
-    return range(low, high + 1)
 
 
 def _suggest_s(record: dict) -> float:

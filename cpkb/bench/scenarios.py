@@ -7,6 +7,7 @@ its task file declares (`predecessors:`), for shipped tasks and task files alike
 
 from __future__ import annotations
 
+import argparse
 import functools
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -130,3 +131,15 @@ def expand(
         for t in tasks
         for m in methods
     ]
+
+
+def seed_range(text: str) -> range:
+    """`8000-8004` (both ends included) or a single seed."""
+    first, _, last = text.partition("-")
+    try:
+        low, high = int(first), int(last or first)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds: {text!r} is not FIRST-LAST") from None
+    if high < low:
+        raise argparse.ArgumentTypeError(f"seeds: {text!r} ends before it starts")
+    return range(low, high + 1)
