@@ -401,6 +401,9 @@ class SurrogateEngine:
         z = encoder.encode_points(points.x) if points.x else np.zeros((0, encoder.dim))
         y = np.asarray(points.feasible, dtype=bool)
         entry = _Entry(space, encoder, z, y, points.last_point_id, prior(z, y), points.origin)
+        if not needs_model(y):
+            # The stated prior holds every point: none is recent, or it would count twice.
+            entry.n_fitted = entry.n_points
         entry.checked_at = time.monotonic()
         with self._cond:
             stored = self._entries.setdefault(key, entry)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import pytest
 from suggest_support import make_client, post_points
 
@@ -87,3 +88,28 @@ def test_predict_refuses_what_a_post_of_the_points_would(app_client: Any) -> Non
             point["x"] = bad
             stored = app_client.post("/v1/kbs/default/points", json={"points": [point]})
             assert stored.status_code == 422
+
+
+def test_a_type_loaded_afresh_serves_its_prior_counting_each_point_once(sqlite_url: str) -> None:
+    """A service that meets a one-class type for the first time (a restart, another replica)
+    serves the stated prior on its stored points, as one that has followed the type serves it:
+    the points are in the prior, not weighed in again as points since a fit."""
+    from suggest_support import REACH
+
+    from surrogate.encoding import encoder_for
+    from surrogate.sources import prior
+
+    x = {"#dir": "top", "#pose": [0.3, 0.3, 0.0]}
+    with make_client(sqlite_url) as client:
+        posted = client.post(
+            "/v1/kbs/default/points",
+            json={"points": [{"graph": REACH, "x": x, "feasible": False}]},
+        )
+        type_id = posted.json()["results"][0]["type_id"]
+        space = client.app.state.surrogates.model("default", type_id).space
+    z = encoder_for(space).encode_points([x])
+    expected = float(prior(z, np.array([False])).proba(z)[0])
+    with make_client(sqlite_url, surrogate_refresh_s=3600) as fresh:
+        url = f"/v1/kbs/default/types/{type_id}/predict"
+        served = fresh.post(url, json={"x": [x]}).json()["p_feasible"][0]
+    assert served == pytest.approx(expected, abs=1e-9) and expected < 0.5
