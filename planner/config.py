@@ -248,10 +248,9 @@ class KnowledgeConfig:
     post_linger_ms: float = 100.0
     """The background poster waits this long after a rollout's points for later ones to join
     them in one request (`planner.knowledge.poster`); a wait for a batch to be stored cuts it
-    short. Each request costs the planner's process about a millisecond and a half of CPU time,
-    and a guided rollout takes about twenty: posting each rollout's points alone took the
-    largest share of the background threads' time (`dev-quiet` in BENCHMARKS.md). 0: each
-    batch goes as soon as the poster is free."""
+    short. Each request costs the planner's process CPU time while its thread holds the GIL,
+    and posting each rollout's points alone took the largest share of the background threads'
+    time (`dev-quiet` in BENCHMARKS.md). 0: each batch goes as soon as the poster is free."""
     deterministic: bool = False
     """Wait for each refit this planner's points ask for, and post and fetch in the foreground:
     the same seed on a fresh knowledge base gives the same run, at the cost of the waits."""
@@ -351,9 +350,9 @@ class KnowledgeConfig:
     out, doubling the rollouts between them up to this many; one that brings something goes
     back to `live_every_rollouts` (`planner.knowledge.polls`). 1: every `live_every_rollouts`
     rollouts. Each poll is a request read in a thread of the planner's process, which holds the
-    GIL meanwhile, and a planner alone polls for nothing. 8, with `post_linger_ms`: the
-    background threads' CPU time fell to about a third on the development suite (`dev-quiet`
-    in BENCHMARKS.md); alone, 8 had bought no time the wall clock could resolve (`dev-idle`)."""
+    GIL meanwhile, and a planner alone polls for nothing. 8, with `post_linger_ms`: judged on
+    the development suite by the background threads' CPU time (`dev-quiet` in BENCHMARKS.md),
+    which the wall clock alone could not resolve (`dev-idle`)."""
     live_hints: int = 8
     """With `live_points`, the newest other planners' feasible points kept per type, scored as
     candidates by this planner's MPF maximisation (each run's also merged into one, its latest

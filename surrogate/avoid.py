@@ -54,7 +54,6 @@ class AvoidSet:
         self.encoder = encoder_for(free, separations=False)
         self.blocks = {v.name: np.arange(v.start, v.start + v.z_width) for v in self.encoder.vars}
         self._walls = {v.name: v.walls() & walls for v in self.encoder.vars}
-        self._encoders: dict[tuple[str, ...], SpaceEncoder] = {}
         self._check_exclude(exclude)
         self.groups = self._groups([p for p in exclude if _agrees(p, fixed)], "exclude")
         self.pending_groups = self._groups(
@@ -77,10 +76,7 @@ class AvoidSet:
                 raise EncodingError(f"exclude[{i}]", "gives none of the free variables")
 
     def _sub_encoder(self, names: tuple[str, ...]) -> SpaceEncoder:
-        if names not in self._encoders:
-            domains = {name: self.free[name] for name in names}
-            self._encoders[names] = encoder_for(domains, separations=False)
-        return self._encoders[names]
+        return encoder_for({name: self.free[name] for name in names}, separations=False)
 
     def _groups(
         self, points: Sequence[Mapping[str, Value]], where: str, *, drop_invalid: bool = False

@@ -175,11 +175,11 @@ class SpaceEncoder:
             start += var.z_width
         by_name = {v.name: v for v in self.vars}
         self.base_dim = start  # the variables' own columns; the separations follow them
-        self.separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
-        self.dim = start + sum(_pair_width(a, b) for a, b in self.separations)
+        separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
+        self.dim = start + sum(_pair_width(a, b) for a, b in separations)
+        # Each separation's columns: its variables, and its heading and metric scales if any.
         self._pair_rules = [
-            (a.name, b.name, _shared_heading(a, b), _metric_scales(a, b))
-            for a, b in self.separations
+            (a.name, b.name, _shared_heading(a, b), _metric_scales(a, b)) for a, b in separations
         ]
 
     def choice_rows(self) -> tuple[tuple[slice, np.ndarray], ...]:
