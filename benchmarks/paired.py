@@ -8,10 +8,10 @@ averaged, so the twin arms of a default count as one better-measured arm. A meth
 `DIR:method` is taken from another bench's directory (planners at once against the same seeds
 alone, an arm rerun elsewhere).
 
-    .venv/bin/python benchmarks/paired.py benchmarks/results/dev-walls \
-        cp-bo+cp-bo-walls cp-bo-no-walls
-    .venv/bin/python benchmarks/paired.py benchmarks/results/concurrent23b \
-        alone/:cp-bo+alone-r2/:cp-bo n8-final/:cp-bo
+    .venv/bin/python benchmarks/paired.py benchmarks/results/heldout23 \
+        quasi-random cp-bo-transfer
+    .venv/bin/python benchmarks/paired.py benchmarks/results/concurrent23e/pack \
+        alone/:cp-bo n8-found/:cp-bo
 """
 
 from __future__ import annotations

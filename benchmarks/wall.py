@@ -11,7 +11,7 @@ the wall times would be level (1 - the baseline's cost per rollout over the meth
 mean wall over mean rollouts). Report wall times of runs made with
 `--workers 1` only; `--seeds` picks them out of a joined directory.
 
-    .venv/bin/python benchmarks/wall.py benchmarks/results/heldout19 --seeds 8000-8004
+    .venv/bin/python benchmarks/wall.py benchmarks/results/heldout23 --seeds 8400-8404
 """
 
 from __future__ import annotations
