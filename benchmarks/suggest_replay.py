@@ -2,10 +2,10 @@
 
 `record` runs transfer scenarios in this process (each on a fresh knowledge base of an embedded
 service: the task's predecessors with cp-bo, 30 rollouts each, then the target until its first
-binding) and keeps, for every suggestion the target's planner makes itself, what went into it:
-the request, the models of its types as the planner held them (their points since the last
-fetch not yet encoded), the pending points and the hints. `replay` answers each recorded
-request again with the code it runs under, timing the planner thread's CPU (the best of
+binding or `--max-rollouts`) and keeps, for every suggestion the target's planner makes itself,
+what went into it: the request, the models of its types as the planner held them (their points
+since the last fetch not yet encoded), the pending points and the hints. `replay` answers each
+recorded request again with the code it runs under, timing the planner thread's CPU (the best of
 `--repeats` passes) and hashing the answers: two commits that should answer alike must print
 the same digest, and the time per request compares their cost on the same work.
 
@@ -70,7 +70,7 @@ def _uncached(model: Any) -> Any:
     return fresh
 
 
-def record(tasks: list[str], seeds: range, out: Path) -> int:
+def record(tasks: list[str], seeds: range, out: Path, max_rollouts: int = 2000) -> int:
     import planner.knowledge.local as local
     from cpkb.bench.scenarios import predecessors
     from cpkb.embedded import embedded_service
@@ -110,7 +110,7 @@ def record(tasks: list[str], seeds: range, out: Path) -> int:
                     )
                 local.suggest_point = keeping
                 try:
-                    run_plan(task, "cp-bo", seed, kb_url=url, kb=kb)
+                    run_plan(task, "cp-bo", seed, kb_url=url, kb=kb, max_rollouts=max_rollouts)
                 finally:
                     local.suggest_point = answer
     out.write_bytes(pickle.dumps(recorded))
@@ -151,12 +151,19 @@ def main(argv: list[str] | None = None) -> int:
     keep.add_argument("--tasks", required=True, help="task files or shipped names, comma-separated")
     keep.add_argument("--seeds", type=seed_range, default=range(7300, 7302), help="FIRST-LAST")
     keep.add_argument("--out", type=Path, required=True)
+    keep.add_argument(
+        "--max-rollouts",
+        type=int,
+        default=2000,
+        help="the target's budget (a hard target may find no binding in it); default 2000",
+    )
     again = commands.add_parser("replay", help="answer recorded requests again, timed")
     again.add_argument("recording", type=Path)
     again.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args(argv)
     if args.command == "record":
-        return record([t for t in args.tasks.split(",") if t], args.seeds, args.out)
+        tasks = [t for t in args.tasks.split(",") if t]
+        return record(tasks, args.seeds, args.out, args.max_rollouts)
     if not args.recording.is_file():
         print(f"{args.recording}: no such recording", file=sys.stderr)
         return 2

@@ -48,17 +48,20 @@ def _tail(path: Path, lines: int = 15) -> str:
 
 
 def wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float) -> bool:
-    """Poll `/healthz` until it answers 200 (True), the process exits or time runs out (False)."""
+    """Poll `/healthz` until it answers 200 (True), the process exits or time runs out (False).
+    One client for every poll: `httpx.get` builds a client, and its SSL context, each time, a
+    hundred times the poll's own cost, taken from the service that is starting."""
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if process.poll() is not None:
-            return False
-        try:
-            if httpx.get(f"{url}/healthz", timeout=2.0).status_code == 200:
-                return True
-        except httpx.TransportError:
-            pass
-        time.sleep(0.1)
+    with httpx.Client(timeout=2.0) as client:
+        while time.monotonic() < deadline:
+            if process.poll() is not None:
+                return False
+            try:
+                if client.get(f"{url}/healthz").status_code == 200:
+                    return True
+            except httpx.TransportError:
+                pass
+            time.sleep(0.1)
     return False
 
 

@@ -55,6 +55,9 @@ class PlanRequest:
     method: str
     seed: int
     max_rollouts: int = 2000
+    # Wall-clock seconds from the run's start (loading the world) after which no rollout starts:
+    # a budget in time beside the one in rollouts, whichever ends first.
+    time_budget_s: float | None = None
     stop_at_first: bool = True
     kb_url: str | None = None
     kb: str = "default"
@@ -71,6 +74,8 @@ class PlanRequest:
             raise ValueError(f"unknown method {self.method!r}; known: {known}")
         if self.max_rollouts < 1:
             raise ValueError("max_rollouts must be at least 1")
+        if self.time_budget_s is not None and not self.time_budget_s > 0:
+            raise ValueError("time_budget_s must be above zero")
         if self.suggest_in not in SUGGEST_IN:
             raise ValueError(
                 f"suggest_in must be one of {', '.join(SUGGEST_IN)}, not {self.suggest_in!r}"
@@ -97,6 +102,8 @@ class PlanResult:
     sample_s: float
     bindings: dict[str, Value] | None
     best_depth: float
+    time_budget_s: float | None = None  # the run's budget in seconds, if it had one
+    timed_out: bool = False  # stopped by time_budget_s before the binding and the rollout cap
     types_activated: int = 0
     points_activated: int = 0
     types_active: int = 0
@@ -315,7 +322,13 @@ def _search(
     config = request.config.search
     search = PWUCT(world, sampler, seed=request.seed, config=config, observer=session)
     process_cpu, thread_cpu = time.process_time(), time.thread_time()
-    outcome = search.run(request.max_rollouts, stop_at_first=request.stop_at_first, progress=report)
+    deadline = None if request.time_budget_s is None else started + request.time_budget_s
+    outcome = search.run(
+        request.max_rollouts,
+        stop_at_first=request.stop_at_first,
+        progress=report,
+        deadline=deadline,
+    )
     background_cpu = (time.process_time() - process_cpu) - (time.thread_time() - thread_cpu)
     return PlanResult(
         task=world.name,
@@ -330,6 +343,8 @@ def _search(
         sample_s=outcome.sample_s,
         bindings=outcome.bindings,
         best_depth=outcome.best_depth,
+        time_budget_s=request.time_budget_s,
+        timed_out=outcome.timed_out,
         notes=_notes(outcome),
         background_cpu_s=round(max(background_cpu, 0.0), 6),
         config=request.config.to_dict(),
@@ -338,6 +353,8 @@ def _search(
 
 def _notes(outcome: SearchResult) -> list[str]:
     notes = ["search space exhausted"] if outcome.exhausted else []
+    if outcome.timed_out:
+        notes.append("time budget reached")
     if outcome.restarts:
         notes.append(f"tree restarted {outcome.restarts} times")
     return notes

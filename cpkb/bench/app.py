@@ -46,6 +46,7 @@ class BenchSettings:
     token: str | None = None
     suggest_in: str = "planner"
     max_rollouts: int = 2000
+    time_budget_s: float | None = None  # a target run's budget in seconds, beside max_rollouts
     predecessor_rollouts: int = 30
     time_limit_s: float | None = None
     summary_only: bool = False
@@ -268,6 +269,7 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             run_fn,
             workers=settings.workers,
             max_rollouts=settings.max_rollouts,
+            time_budget_s=settings.time_budget_s,
             predecessor_rollouts=settings.predecessor_rollouts,
             predecessor_kwargs={"stop_at_first": False},
             kb_service=kbs,

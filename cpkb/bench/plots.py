@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from cpkb.bench.scenarios import task_kinds
-from cpkb.bench.stats import BOOTSTRAP_RESAMPLES, ordered, rollouts_metric
+from cpkb.bench.stats import BOOTSTRAP_RESAMPLES, ordered, rollouts_metric, time_metric
 
 # Okabe and Ito's palette: told apart with every common form of colour blindness and in grey.
 PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
@@ -246,7 +246,7 @@ def write_plots(
     )
     paths += box_plot(
         records,
-        lambda r: float(r["wall_s"]),
+        time_metric,
         out / "wall_time",
         ylabel="wall time to the first feasible binding, s",
         title="Wall time per method (log scale; target task only)",

@@ -31,6 +31,7 @@ PINNED_DEFAULTS: Mapping[str, Any] = {
     "concurrent": 1,
     "mixed": False,
     "service": {},
+    "time_budget_s": None,
 }
 """A setting a directory made before it was pinned holds at this value."""
 

@@ -92,6 +92,7 @@ class Job:
     kb_prefix: str
     max_rollouts: int
     predecessor_rollouts: int
+    time_budget_s: float | None = None  # the target run's, in seconds (predecessors have none)
     predecessor_kwargs: Mapping[str, Any] = field(default_factory=dict)
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     group: Group | None = None
@@ -185,7 +186,8 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
         fit_wait_s = 0.0
         if predecessors and job.kb_service is not None:
             fit_wait_s = job.kb_service.wait_fitted(job.kb_name)
-        record = _call(job, s.task, s.sampler, job.max_rollouts)
+        budget = {} if job.time_budget_s is None else {"time_budget_s": job.time_budget_s}
+        record = _call(job, s.task, s.sampler, job.max_rollouts, **budget)
         record.pop("bindings_detail", None)
         record.update(
             task=s.task,
@@ -195,6 +197,7 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             overrides=dict(s.overrides),
             seed=s.seed,
             max_rollouts=job.max_rollouts,
+            time_budget_s=job.time_budget_s,
             predecessors=predecessors,
             predecessor_wall_s=sum(float(p["wall_s"] or 0.0) for p in predecessors),
             fit_wait_s=fit_wait_s,
@@ -336,6 +339,7 @@ def run_bench(
     *,
     workers: int,
     max_rollouts: int,
+    time_budget_s: float | None = None,
     predecessor_rollouts: int = 30,
     predecessor_kwargs: Mapping[str, Any] | None = None,
     kb_service: KbService | None = None,
@@ -373,6 +377,7 @@ def run_bench(
     store.pin_config(
         {
             "max_rollouts": max_rollouts,
+            "time_budget_s": time_budget_s,
             "predecessor_rollouts": predecessor_rollouts,
             "config": dict(config or {}),
             "concurrent": concurrent,
@@ -411,6 +416,7 @@ def run_bench(
                 prefix,
                 max_rollouts,
                 predecessor_rollouts,
+                time_budget_s,
                 dict(predecessor_kwargs or {}),
                 dict(config or {}),
                 group,

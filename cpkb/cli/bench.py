@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 from typing import Any
 
 from cpkb.cli import CliError
-from cpkb.cli.argtypes import non_negative_int, positive_int
+from cpkb.cli.argtypes import non_negative_int, parse_duration, positive_int
 from cpkb.cli.config_args import add_config_arguments, config_overrides
 from cpkb.cli.reach import EXIT_STATUS_HELP, probe
 
@@ -23,20 +22,6 @@ def _csv_list(text: str) -> list[str]:
     if len(set(items)) != len(items):
         raise argparse.ArgumentTypeError(f"a name is repeated in {text!r}")
     return items
-
-
-_DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smh]?)\s*$")
-
-
-def parse_duration(text: str) -> float:
-    """Seconds from `90`, `90s`, `30m` or `2h`."""
-    match = _DURATION.match(text)
-    if not match:
-        raise argparse.ArgumentTypeError(f"not a duration (e.g. 600, 30m, 2h): {text!r}")
-    value = float(match.group(1)) * {"": 1, "s": 1, "m": 60, "h": 3600}[match.group(2)]
-    if value <= 0:
-        raise argparse.ArgumentTypeError("a time limit must be above zero")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -152,6 +137,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="rollout budget of a run; an unsolved run counts as this many (default 2000)",
     )
     parser.add_argument(
+        "--time-budget",
+        type=parse_duration,
+        default=None,
+        metavar="SECONDS",
+        help="a target run's budget in wall-clock time as well (60, 90s, 2m; predecessors "
+        "keep their rollouts): no rollout starts after it; the summary counts a run solved "
+        "only within it, and an unsolved run's time as the budget",
+    )
+    parser.add_argument(
         "--predecessor-rollouts",
         type=positive_int,
         default=30,
@@ -229,6 +223,7 @@ def handle(args: argparse.Namespace) -> int:
         token=token,
         suggest_in=args.suggest_in,
         max_rollouts=args.max_rollouts,
+        time_budget_s=args.time_budget,
         predecessor_rollouts=args.predecessor_rollouts,
         time_limit_s=args.time_limit,
         summary_only=args.summary_only,

@@ -1,10 +1,12 @@
 """`cpkb generate`: a suite of random tabletop workspaces with desk-, regrasp- and pack-like
-targets and their predecessors, each target checked solvable by quasi-random."""
+targets and their predecessors, each target checked solvable by quasi-random; with `--difficulty
+hard`, the hard family's targets, each checked solvable and hard."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from cpkb.cli import CliError
@@ -21,12 +23,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "predecessors, and OUT/suite.yaml, the index. Each target is probed with "
             "quasi-random: solved within --probe-rollouts on most of --probe-seeds seeds and "
             "needing more than 3 rollouts in the median, or it is redrawn. Everything is drawn "
-            "from --seed. Run the suite with `cpkb bench --tasks OUT`."
+            "from --seed. Run the suite with `cpkb bench --tasks OUT`. With --difficulty hard, "
+            "each workspace holds a tight packing (5 to 8 boxes of mixed sizes covering 45 % "
+            "or more of a tray) instead, kept only when a binding is found for it (played in "
+            "the simulator, recorded in suite.yaml) and quasi-random's median over the probes "
+            "is at least 500 rollouts, an unsolved probe counting as more than any."
         ),
     )
     parser.add_argument("--out", type=Path, required=True, help="the suite's directory")
     parser.add_argument("--workspaces", type=positive_int, default=4, help="how many (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="the suite's seed (default 0)")
+    parser.add_argument(
+        "--difficulty",
+        choices=("standard", "hard"),
+        default="standard",
+        help="standard (desk, regrasp, pack) or the hard family (default standard)",
+    )
     parser.add_argument(
         "--probe-seeds",
         type=positive_int,
@@ -34,7 +46,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="quasi-random runs per target (default 3)",
     )
     parser.add_argument(
-        "--probe-rollouts", type=positive_int, default=500, help="each probe's budget (default 500)"
+        "--probe-rollouts",
+        type=positive_int,
+        default=None,
+        help="each probe's budget (default 500; 2000 with --difficulty hard)",
     )
     parser.add_argument(
         "--no-check", action="store_true", help="skip the probes (the layouts are unchecked)"
@@ -44,16 +59,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
-    from planner.tasks.generator import GenerationError, ProbeSettings, generate_suite
+    from planner.tasks.generator import (
+        GenerationError,
+        HardProbe,
+        ProbeSettings,
+        generate_hard_suite,
+        generate_suite,
+    )
 
     if args.out.exists() and not args.out.is_dir():
         raise CliError(f"--out {args.out} exists and is not a directory")
-    settings = ProbeSettings(
-        seeds=args.probe_seeds, max_rollouts=args.probe_rollouts, check=not args.no_check
-    )
     log = (lambda _: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     try:
-        made = generate_suite(args.out, args.workspaces, args.seed, settings, log)
+        if args.difficulty == "hard":
+            hard = HardProbe(seeds=args.probe_seeds, check=not args.no_check)
+            if args.probe_rollouts is not None:
+                hard = replace(hard, max_rollouts=args.probe_rollouts)
+            made = generate_hard_suite(args.out, args.workspaces, args.seed, hard, log)
+        else:
+            settings = ProbeSettings(
+                seeds=args.probe_seeds,
+                max_rollouts=args.probe_rollouts or ProbeSettings.max_rollouts,
+                check=not args.no_check,
+            )
+            made = generate_suite(args.out, args.workspaces, args.seed, settings, log)
     except GenerationError as exc:
         raise CliError(str(exc)) from None
     print(

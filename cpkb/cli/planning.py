@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 from cpkb.cli import CliError
+from cpkb.cli.argtypes import parse_duration
 from cpkb.cli.config_args import add_config_arguments, plan_config
 from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
 
@@ -29,6 +30,14 @@ def register(subparsers: Any) -> None:
     plan.add_argument("--method", default="cp-bo", help=f"{' | '.join(METHODS)} (default cp-bo)")
     plan.add_argument("--seed", type=int, default=0, help="the run's seed (default 0)")
     plan.add_argument("--max-rollouts", type=int, default=2000, help="rollout budget (2000)")
+    plan.add_argument(
+        "--time-budget",
+        type=parse_duration,
+        default=None,
+        metavar="SECONDS",
+        help="a budget in wall-clock time as well (60, 90s, 2m): no rollout starts after it, "
+        "counted from loading the world; whichever budget ends first stops the run",
+    )
     plan.add_argument(
         "--full-budget",
         action="store_true",
@@ -143,6 +152,7 @@ def _plan(args: argparse.Namespace) -> int:
         method=args.method,
         seed=args.seed,
         max_rollouts=args.max_rollouts,
+        time_budget_s=args.time_budget,
         kb_url=args.kb_url,
         kb=args.kb,
         token=token,

@@ -80,6 +80,7 @@ class SearchResult:
     sim_s: float
     sample_s: float
     exhausted: bool = False
+    timed_out: bool = False  # stopped by the deadline, not by the rollout budget
     restarts: int = 0
     solutions: list[dict[str, Value]] = field(default_factory=list)
 
@@ -131,11 +132,17 @@ class PWUCT:
         *,
         stop_at_first: bool = True,
         progress: Callable[[SearchProgress], None] | None = None,
+        deadline: float | None = None,
     ) -> SearchResult:
-        """Rollouts until the first feasible binding list (or the whole budget)."""
+        """Rollouts until the first feasible binding list (or the whole budget). `deadline`, a
+        `time.perf_counter()` value: no rollout starts after it (one under way finishes)."""
         first: int | None = None
         solutions: list[dict[str, Value]] = []
+        timed_out = False
         while self.rollout < max_rollouts:
+            if deadline is not None and time.perf_counter() >= deadline:
+                timed_out = True
+                break
             if self.root.closed and not self._redraw_closed_tree():
                 break
             found = self._rollout()
@@ -167,6 +174,7 @@ class PWUCT:
             sim_s=self.sim_s,
             sample_s=self.sample_s,
             exhausted=self.root.closed,
+            timed_out=timed_out,
             restarts=self.restarts,
             solutions=solutions,
         )

@@ -65,3 +65,14 @@ def test_a_transfer_bench_over_a_generated_suite_completes(tmp_path: Path) -> No
         assert [p["task"] for p in run["predecessors"]] == list(declared)
         assert all(p["rollouts_spent"] == 4 for p in run["predecessors"])
         assert run["method"] == "cp-bo-transfer" and run["sampler"] == "cp-bo"
+
+
+@pytest.mark.slow
+def test_generate_draws_the_hard_family(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    suite = tmp_path / "hard"
+    argv = ["--out", str(suite), "--seed", "5", "--no-check", "--workspaces", "1"]
+    made = cpkb_in_process(capfd, "generate", "--difficulty", "hard", *argv)
+    assert made.returncode == 0, made.stderr
+    assert "wrote 1 targets in 1 workspaces" in made.stdout
+    target = load_task(str(suite / "ws00" / "tight_pack.yaml"))
+    assert target.kind == "tight-pack" and 5 <= len(target.bodies) <= 8

@@ -29,6 +29,12 @@ from planner.tasks.generator.build import (
     pick_place_layers,
     regrasp_layers,
 )
+from planner.tasks.generator.hard import (
+    HardProbe,
+    Probe,
+    generate_hard_workspace,
+    quasi_random_probe,
+)
 from planner.tasks.generator.layout import draw_body
 
 KINDS = ("desk", "regrasp", "pack")
@@ -355,6 +361,59 @@ def generate_suite(
             "probe_seeds": settings.seeds,
             "max_rollouts": settings.max_rollouts,
             "trivial_median": settings.trivial,
+        },
+        "targets": targets,
+    }
+    write_yaml(out / SUITE_FILE, index_data)
+    return index_data | {"wall_s": time.perf_counter() - started}
+
+
+def generate_hard_suite(
+    out: Path,
+    workspaces: int,
+    seed: int,
+    settings: HardProbe | None = None,
+    log: Callable[[str], None] = lambda _: None,
+    probe: Probe = quasi_random_probe,
+) -> dict[str, Any]:
+    """The hard family's suite (`planner.tasks.generator.hard`), written like `generate_suite`'s;
+    the index also records each target's packing fill and the binding that proves it
+    solvable."""
+    settings = settings or HardProbe()
+    started = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    streams = np.random.SeedSequence(seed).spawn(workspaces)
+    targets: list[dict[str, Any]] = []
+    for index, stream in enumerate(streams):
+        name = f"ws{index:02d}"
+        try:
+            made = generate_hard_workspace(
+                out / name, name, np.random.default_rng(stream), settings, log, probe
+            )
+        except RuntimeError as exc:
+            raise GenerationError(str(exc)) from None
+        targets += [
+            {
+                "file": t.file,
+                "kind": t.kind,
+                "attempts": t.attempts,
+                "fill": t.fill,
+                "probe_rollouts": t.rollouts,
+                "probe_seeds": t.seeds,
+                "solved_by": {"method": "witness", "bindings": t.witness},
+            }
+            for t in made
+        ]
+    index_data = {
+        "seed": seed,
+        "workspaces": workspaces,
+        "difficulty": "hard",
+        "check": {
+            "enabled": settings.check,
+            "method": "quasi-random",
+            "probe_seeds": settings.seeds,
+            "max_rollouts": settings.max_rollouts,
+            "hard_median": settings.hard_median,
         },
         "targets": targets,
     }
