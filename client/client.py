@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from pydantic import BaseModel, TypeAdapter
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from client.bindings import BindingIn, BindingOut, BindingsPage
 from client.errors import CpkbError, NotFound, ServiceUnavailable, error_for
@@ -194,7 +194,18 @@ class CpkbClient:
 
     def _call(self, model: Any, method: str, path: str, **kwargs: Any) -> Any:
         response = self.request(method, path, **kwargs)
-        return _adapter(model).validate_python(response.json())
+        try:
+            return _adapter(model).validate_python(response.json())
+        except (ValueError, ValidationError) as exc:
+            # An answer this client cannot read (an older service serving a row it once let
+            # in): one line naming the call, not a validation traceback in the caller.
+            first = exc.errors()[0] if isinstance(exc, ValidationError) else {"msg": str(exc)}
+            where = ".".join(str(p) for p in first.get("loc", ()))
+            raise CpkbError(
+                f"{method} {path}: the service's answer does not fit the wire contract"
+                f" ({where + ': ' if where else ''}{first['msg']})",
+                status=response.status_code,
+            ) from exc
 
     @staticmethod
     def _body(model: BaseModel) -> Any:

@@ -179,6 +179,13 @@ def refusal(policy: AccessPolicy, request: Request, route_path: str) -> Response
     return None
 
 
+def may_write(request: Request) -> bool:
+    """Whether the caller may write: the service has no token, or the request's bearer token
+    is valid (the dashboard's cookie grants reads only)."""
+    policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
+    return not policy.enabled or policy.accepts(_bearer_token(request))
+
+
 class AccessGate:
     """ASGI middleware: a request without the token its route needs is answered before
     anything reads its body, so unauthenticated uploads cost the server no memory."""

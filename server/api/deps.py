@@ -8,6 +8,7 @@ from fastapi import Depends, Request
 
 from server.db import Store
 from server.hooks import ServiceHooks
+from server.security import may_write
 from server.settings import Settings
 
 
@@ -26,3 +27,6 @@ def _settings(request: Request) -> Settings:
 StoreDep = Annotated[Store, Depends(_store)]
 HooksDep = Annotated[ServiceHooks, Depends(_hooks)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
+# True when the caller could write (server.security.may_write): a read route that would
+# otherwise leave a trace others see (a suggestion recorded as pending) leaves none without.
+WriterDep = Annotated[bool, Depends(may_write)]

@@ -16,6 +16,7 @@ from client.models import (
     SuggestIn,
     SuggestOut,
 )
+from server.api.deps import WriterDep
 from server.api.responses import BODY, IN_KB, errors
 from server.errors import Unavailable
 from server.surrogates import service
@@ -35,10 +36,11 @@ EngineDep = Annotated[SurrogateEngine, Depends(_engine)]
 
 
 @router.post("/suggest", responses=errors(409) | BODY)
-def suggest(kb: str, body: SuggestIn, engine: EngineDep) -> SuggestOut:
+def suggest(kb: str, body: SuggestIn, engine: EngineDep, writer: WriterDep) -> SuggestOut:
     """The point of `space` maximising min_i P(constraint i feasible), fixed variables applied,
-    never an excluded point, away from suggestions still pending."""
-    return service.suggest(engine, kb, body)
+    never an excluded point, away from suggestions still pending. The answer is recorded as
+    pending only for a caller that may write (a valid token, where the service has one)."""
+    return service.suggest(engine, kb, body, record=writer)
 
 
 @router.post("/models", responses=BODY)

@@ -3,12 +3,17 @@
 
 from __future__ import annotations
 
+import logging
+
+from pydantic import ValidationError
 from sqlalchemy import func, or_, select
 
 from client.bindings import BindingIn, BindingOut, BindingsPage
 from server.db import Store
 from server.orm import BindingRow
 from server.services.kbs import kb_id
+
+log = logging.getLogger("cpkb.server")
 
 
 def add_binding(store: Store, kb: str, binding: BindingIn) -> BindingOut:
@@ -57,7 +62,19 @@ def list_bindings(
         more = len(rows) > limit
         rows = rows[:limit]
         cursor = rows[-1].id if more else max(top, after or 0)
-        return BindingsPage(bindings=[_out(row) for row in rows], cursor=cursor)
+        return BindingsPage(bindings=_readable(rows), cursor=cursor)
+
+
+def _readable(rows: list[BindingRow]) -> list[BindingOut]:
+    """The rows as answers, without any that no reader could take: a binding stored before
+    the routes refused non-finite numbers (SQLite kept a NaN) is skipped, not answered."""
+    found = []
+    for row in rows:
+        try:
+            found.append(_out(row))
+        except ValidationError as exc:
+            log.warning("binding %d skipped: %s", row.id, exc.errors()[0]["msg"])
+    return found
 
 
 def _out(row: BindingRow) -> BindingOut:
