@@ -227,18 +227,42 @@ def login_form(target: Annotated[str, Query(alias="next", max_length=2000)] = "/
     return _login_page(target)
 
 
+# The login form's body: a token and a target path; anything longer is not a login.
+LOGIN_MAX_BYTES = 16 * 1024
+LOGIN_MAX_FIELDS = 4
+
+
 @login_router.post("/login", response_class=HTMLResponse)
 async def login(request: Request) -> Response:
-    """Check the token from the form; on success keep it in a cookie that only reads accept."""
-    fields = parse_qs((await request.body()).decode("utf-8", "replace"), max_num_fields=4)
+    """Check the token from the form; on success keep it in a cookie that only reads accept.
+    A server without a token needs no cookie and sets none."""
+    body = await request.body()
+    if len(body) > LOGIN_MAX_BYTES:
+        return _form_refusal(413, f"the login form is over {LOGIN_MAX_BYTES} bytes")
+    try:
+        fields = parse_qs(body.decode("utf-8", "replace"), max_num_fields=LOGIN_MAX_FIELDS)
+    except ValueError:
+        return _form_refusal(400, f"the login form has more than {LOGIN_MAX_FIELDS} fields")
     token = fields.get("token", [""])[0]
     target = _local_path(fields.get("next", ["/"])[0])
     policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
     if policy.enabled and not policy.accepts(token):
         return HTMLResponse(_login_page(target, "invalid token"), status_code=401)
     response = RedirectResponse(target, status_code=status.HTTP_303_SEE_OTHER)
-    response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+    if policy.enabled:
+        if not _cookie_safe(token):
+            return _form_refusal(400, "this token cannot be kept in a cookie: send it as a header")
+        response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
     return response
+
+
+def _cookie_safe(token: str) -> bool:
+    """Printable ASCII without the characters a cookie value cannot hold."""
+    return token.isascii() and token.isprintable() and not any(c in token for c in ' ",;\\')
+
+
+def _form_refusal(code: int, detail: str) -> Response:
+    return HTMLResponse(f"<!doctype html><p role=alert>{html.escape(detail)}</p>", code)
 
 
 @login_router.post("/logout")
