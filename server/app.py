@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+from anyio import CapacityLimiter
 from fastapi import Depends, FastAPI
 from fastapi_offline import FastAPIOffline
 
@@ -21,16 +22,14 @@ from server.settings import Settings
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
-    store = Store.from_url(
-        settings.database_url,
-        busy_timeout_ms=settings.sqlite_busy_timeout_ms,
-        pool_size=settings.pool_size,
-    )
+    store = Store.from_url(settings.database_url, settings.engine_options())
     prepare_database(store)
     hooks = ServiceHooks()
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # The health probe's own threads (server.api.health), made in the server's event loop.
+        app.state.probe_lane = CapacityLimiter(2)
         for start in hooks.on_startup:
             start()
         try:
