@@ -13,14 +13,16 @@ from fastapi import APIRouter, Request
 
 from client.models import Health
 from server import __version__
-from server.api.deps import StoreDep
 from server.api.responses import errors
+from server.db import Store
 
 router = APIRouter(tags=["health"], responses=errors(503))
 
 
 @router.api_route("/healthz", methods=["GET", "HEAD"])
-async def healthz(request: Request, store: StoreDep) -> Health:
+async def healthz(request: Request) -> Health:
     """Ok when the database answers; the service's version and database dialect."""
+    # No sync dependency (FastAPI would run it on the shared worker threads).
+    store: Store = request.app.state.store
     await to_thread.run_sync(store.ping, limiter=request.app.state.probe_lane)
     return Health(status="ok", version=__version__, database=store.dialect)
