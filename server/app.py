@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -30,6 +31,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         # The health probe's own threads (server.api.health), made in the server's event loop.
         app.state.probe_lane = CapacityLimiter(2)
+        # CPU-heavy requests anyone may send (server.api.deps.in_heavy_lane): one per core the
+        # service may run on, two at least (torch releases the GIL; hashing does not).
+        app.state.heavy_lane = CapacityLimiter(max(2, len(os.sched_getaffinity(0))))
         for start in hooks.on_startup:
             start()
         try:

@@ -14,12 +14,14 @@ from typing import Literal
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from client.models import MAX_NODES
 from server.cpus import parse_cpu_list
 from server.db import EngineOptions, SqliteSynchronous
 from surrogate.config import AdditiveMode, SurrogateConfig
 
 DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
 DEFAULT_PORT = 8000
+DEFAULT_GRAPH_NODES = 8192
 
 
 class Settings(BaseSettings):
@@ -37,6 +39,10 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=32 * 1024 * 1024, ge=1024)
     default_page_size: int = Field(default=100, ge=1)
     max_page_size: int = Field(default=1000, ge=1)
+    # The nodes of the distinct graphs one request (a match, a post) may have hashed into types:
+    # hashing costs about 25 ms per 64-node graph, and a match is open to anyone (413 beyond).
+    # A planner's match of 500 graphs of its task stays well within.
+    max_request_graph_nodes: int = Field(default=DEFAULT_GRAPH_NODES, ge=MAX_NODES)
 
     # Database behaviour (server.db.EngineOptions says what each does).
     sqlite_busy_timeout_ms: int = Field(default=EngineOptions.busy_timeout_ms, ge=0)
