@@ -5,7 +5,8 @@ Once a token is set (`CPKB_TOKEN`, or `CPKB_TOKENS_FILE` with one token per line
 and delete needs `Authorization: Bearer <token>` (401 without); reads stay open unless
 `CPKB_AUTH_READS` is true. Classification is deny-by-default: a route is a read only if its
 method is GET/HEAD/OPTIONS or it is one of the POST queries below that store nothing, so a
-new write route is protected without anyone remembering to mark it.
+new write route is protected without anyone remembering to mark it. (`/suggest` records its
+answer as pending only for a caller that `may_write`, so an open read changes nothing.)
 
 Browsers cannot send a bearer header when they open a page, so the dashboard's reads (when
 `CPKB_AUTH_READS` guards them) accept the token from an HttpOnly, SameSite=Strict cookie set by
