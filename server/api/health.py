@@ -19,7 +19,8 @@ from server.db import Store
 router = APIRouter(tags=["health"], responses=errors(503))
 
 
-@router.api_route("/healthz", methods=["GET", "HEAD"])
+@router.get("/healthz")
+@router.head("/healthz", include_in_schema=False)  # load balancers' probes; answers as GET
 async def healthz(request: Request) -> Health:
     """Ok when the database answers; the service's version and database dialect."""
     # No sync dependency (FastAPI would run it on the shared worker threads).
