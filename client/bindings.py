@@ -5,6 +5,7 @@ found, so that planners of the same task on the same knowledge base can try it a
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -42,6 +43,11 @@ class BindingIn(_Strict):
     )
     bindings: dict[Label, Value] = Field(
         min_length=1, max_length=256, description="Every decision's value."
+    )
+    key: Annotated[Text, Field(min_length=1, max_length=200)] | None = Field(
+        default=None,
+        description="Idempotency key: the same key and binding again stores nothing and "
+        "answers the stored one; the same key with another binding is a 409.",
     )
 
 

@@ -3,9 +3,10 @@
 Every call has a timeout; idempotent calls are retried with exponential backoff and jitter on
 connection errors and 5xx answers. Once the client has reached the server, connection errors
 are retried for at least `reconnect_for` seconds, so a long planner run waits out a server
-restart; a server never reached (a wrong URL) still fails after `retries`. Point posts are made
-idempotent by a key on every point (generated when the caller gives none), so a retry after a
-lost answer never stores twice.
+restart; a server never reached (a wrong URL) still fails after `retries`. Point and binding posts
+are made idempotent by a key on each (generated when the caller gives none), so a retry after a
+lost answer never stores twice; a create or delete of a knowledge base sent again takes the
+409 or 404 its own first try caused as success.
 4xx answers raise the matching `client.errors` class carrying the server's detail.
 
 `base_url` may name several replicas of one service (`"http://a:8000,http://b:8000"`, or a
@@ -26,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from pydantic import BaseModel, TypeAdapter
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from client.bindings import BindingIn, BindingOut, BindingsPage
 from client.errors import CpkbError, NotFound, ServiceUnavailable, error_for
@@ -147,6 +148,22 @@ class CpkbClient:
         """One call with retries (when `retry`) on connection errors and 5xx; raises on 4xx.
         With several replicas, each try that meets a connection error or a 503 goes on to the
         next replica; the pause between tries comes once a round has been through them all."""
+        response, _ = self._exchange(method, path, json=json, params=params, retry=retry)
+        if response.is_error:
+            raise error_for(response)
+        return response
+
+    def _exchange(
+        self,
+        method: str,
+        path: str,
+        *,
+        json: Any = None,
+        params: Mapping[str, Any] | None = None,
+        retry: bool = True,
+    ) -> tuple[httpx.Response, bool]:
+        """The final answer of `request` (an error answer too), and whether the call was sent
+        more than once: an earlier try may have acted although its answer was lost."""
         attempts = (1 + (self.retries if retry else 0)) * len(self.urls)
         reconnect_until = time.monotonic() + (self.reconnect_for if retry else 0.0)
         attempt = 0
@@ -173,9 +190,7 @@ class CpkbClient:
                 else:
                     self._pause(self._round(attempt), response)
                 continue
-            if response.is_error:
-                raise error_for(response)
-            return response
+            return response, attempt > 1
 
     def _round(self, attempt: int) -> int:
         return (attempt - 1) // len(self.urls)
@@ -194,7 +209,18 @@ class CpkbClient:
 
     def _call(self, model: Any, method: str, path: str, **kwargs: Any) -> Any:
         response = self.request(method, path, **kwargs)
-        return _adapter(model).validate_python(response.json())
+        try:
+            return _adapter(model).validate_python(response.json())
+        except (ValueError, ValidationError) as exc:
+            # An answer this client cannot read (an older service serving a row it once let
+            # in): one line naming the call, not a validation traceback in the caller.
+            first = exc.errors()[0] if isinstance(exc, ValidationError) else {"msg": str(exc)}
+            where = ".".join(str(p) for p in first.get("loc", ()))
+            raise CpkbError(
+                f"{method} {path}: the service's answer does not fit the wire contract"
+                f" ({where + ': ' if where else ''}{first['msg']})",
+                status=response.status_code,
+            ) from exc
 
     @staticmethod
     def _body(model: BaseModel) -> Any:
@@ -208,19 +234,21 @@ class CpkbClient:
     def create_kb(self, name: str, *, exist_ok: bool = False) -> KnowledgeBase:
         """Create a knowledge base; with `exist_ok`, an existing one is returned instead. That
         case asks first, so that a planner's every run does not leave a 409 in the service's
-        metrics; a 409 still answers a creation racing another."""
+        metrics; a 409 still answers a creation racing another. A 409 to a create sent again
+        (the first try's answer was lost, and it may have created the base) is taken as this
+        call's own success."""
         body = self._body(KnowledgeBaseIn(name=name))
         if exist_ok:
             try:
                 return self.get_kb(name)
             except NotFound:
                 pass
-        try:
-            return self._call(KnowledgeBase, "POST", "/v1/kbs", json=body)
-        except CpkbError as exc:
-            if exist_ok and exc.status == 409:
-                return self.get_kb(name)
-            raise
+        response, resent = self._exchange("POST", "/v1/kbs", json=body)
+        if response.status_code == 409 and (exist_ok or resent):
+            return self.get_kb(name)
+        if response.is_error:
+            raise error_for(response)
+        return _adapter(KnowledgeBase).validate_python(response.json())
 
     def get_kb(self, name: str) -> KnowledgeBase:
         return self._call(KnowledgeBase, "GET", f"/v1/kbs/{name}")
@@ -229,7 +257,11 @@ class CpkbClient:
         return self._call(list[KnowledgeBase], "GET", "/v1/kbs")
 
     def delete_kb(self, name: str) -> None:
-        self.request("DELETE", f"/v1/kbs/{name}")
+        """Delete a knowledge base; a 404 to a delete sent again (the first try's answer was
+        lost, and it may have deleted the base) is taken as this call's own success."""
+        response, resent = self._exchange("DELETE", f"/v1/kbs/{name}")
+        if response.is_error and not (response.status_code == 404 and resent):
+            raise error_for(response)
 
     # -- points ------------------------------------------------------------------------------
 
@@ -289,7 +321,10 @@ class CpkbClient:
         return self._call(StoredFeasibleOut, "POST", f"/v1/kbs/{kb}/points/feasible", json=body)
 
     def add_binding(self, kb: str, binding: BindingIn) -> BindingOut:
-        """Store a binding list found for a task."""
+        """Store a binding list found for a task. A binding without `key` gets a fresh one, so
+        retries of this call never store it twice."""
+        if binding.key is None:
+            binding = binding.model_copy(update={"key": uuid.uuid4().hex})
         return self._call(BindingOut, "POST", f"/v1/kbs/{kb}/bindings", json=self._body(binding))
 
     def bindings(

@@ -52,13 +52,17 @@ def _not_boolean(value: Any) -> Any:
 
 
 Text = Annotated[str, AfterValidator(_storable)]
-Number = Annotated[float, BeforeValidator(_not_boolean)]
+# JSON as Python reads it allows NaN and Infinity; no route may take one in (SQLite would store
+# it, and every later reader of that row would fail on it).
+Number = Annotated[float, BeforeValidator(_not_boolean), Field(allow_inf_nan=False)]
 Label = Annotated[Text, Field(min_length=1, max_length=MAX_LABEL)]
 Value = Text | list[Number]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """A request model: unknown fields and non-finite numbers are refused (422)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 # Examples for the OpenAPI schema (/docs): an inverse-kinematics failure of one grasp and pose.

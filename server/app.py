@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+from anyio import CapacityLimiter
 from fastapi import Depends, FastAPI
 from fastapi_offline import FastAPIOffline
 
@@ -21,16 +23,17 @@ from server.settings import Settings
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
-    store = Store.from_url(
-        settings.database_url,
-        busy_timeout_ms=settings.sqlite_busy_timeout_ms,
-        pool_size=settings.pool_size,
-    )
+    store = Store.from_url(settings.database_url, settings.engine_options())
     prepare_database(store)
     hooks = ServiceHooks()
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # The health probe's own threads (server.api.health), made in the server's event loop.
+        app.state.probe_lane = CapacityLimiter(2)
+        # CPU-heavy requests anyone may send (server.api.deps.in_heavy_lane): one per core the
+        # service may run on, two at least (torch releases the GIL; hashing does not).
+        app.state.heavy_lane = CapacityLimiter(max(2, len(os.sched_getaffinity(0))))
         for start in hooks.on_startup:
             start()
         try:

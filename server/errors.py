@@ -40,6 +40,12 @@ class Conflict(ServiceError):
     status = 409
 
 
+class TooLarge(ServiceError):
+    """A request asks for more work than the service does for one (a setting says how much)."""
+
+    status = 413
+
+
 class Unavailable(ServiceError):
     """The database is busy or unreachable: retry later (answered with Retry-After)."""
 

@@ -163,7 +163,10 @@ class BindingRow(Base):
     """A binding list a planner found for its task (`client.bindings`)."""
 
     __tablename__ = "cp_bindings"
-    __table_args__ = (Index("ix_cp_bindings_kb_id_skeleton_id", "kb_id", "skeleton", "id"),)
+    __table_args__ = (
+        Index("ix_cp_bindings_kb_id_skeleton_id", "kb_id", "skeleton", "id"),
+        UniqueConstraint("kb_id", "key"),
+    )
 
     id: Mapped[int] = mapped_column(BigId, primary_key=True, autoincrement=True)
     kb_id: Mapped[int] = mapped_column(ForeignKey("knowledge_bases.id", ondelete="CASCADE"))
@@ -172,4 +175,6 @@ class BindingRow(Base):
     run: Mapped[str | None] = mapped_column(String(128))
     rollout: Mapped[int | None] = mapped_column(BigInteger)
     bindings: Mapped[dict[str, Any]] = mapped_column(JSON)
+    # Idempotency key (`client.bindings.BindingIn.key`): the same key again stores nothing.
+    key: Mapped[str | None] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)

@@ -5,7 +5,8 @@ Once a token is set (`CPKB_TOKEN`, or `CPKB_TOKENS_FILE` with one token per line
 and delete needs `Authorization: Bearer <token>` (401 without); reads stay open unless
 `CPKB_AUTH_READS` is true. Classification is deny-by-default: a route is a read only if its
 method is GET/HEAD/OPTIONS or it is one of the POST queries below that store nothing, so a
-new write route is protected without anyone remembering to mark it.
+new write route is protected without anyone remembering to mark it. (`/suggest` records its
+answer as pending only for a caller that `may_write`, so an open read changes nothing.)
 
 Browsers cannot send a bearer header when they open a page, so the dashboard's reads (when
 `CPKB_AUTH_READS` guards them) accept the token from an HttpOnly, SameSite=Strict cookie set by
@@ -179,6 +180,13 @@ def refusal(policy: AccessPolicy, request: Request, route_path: str) -> Response
     return None
 
 
+def may_write(request: Request) -> bool:
+    """Whether the caller may write: the service has no token, or the request's bearer token
+    is valid (the dashboard's cookie grants reads only)."""
+    policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
+    return not policy.enabled or policy.accepts(_bearer_token(request))
+
+
 class AccessGate:
     """ASGI middleware: a request without the token its route needs is answered before
     anything reads its body, so unauthenticated uploads cost the server no memory."""
@@ -220,18 +228,42 @@ def login_form(target: Annotated[str, Query(alias="next", max_length=2000)] = "/
     return _login_page(target)
 
 
+# The login form's body: a token and a target path; anything longer is not a login.
+LOGIN_MAX_BYTES = 16 * 1024
+LOGIN_MAX_FIELDS = 4
+
+
 @login_router.post("/login", response_class=HTMLResponse)
 async def login(request: Request) -> Response:
-    """Check the token from the form; on success keep it in a cookie that only reads accept."""
-    fields = parse_qs((await request.body()).decode("utf-8", "replace"), max_num_fields=4)
+    """Check the token from the form; on success keep it in a cookie that only reads accept.
+    A server without a token needs no cookie and sets none."""
+    body = await request.body()
+    if len(body) > LOGIN_MAX_BYTES:
+        return _form_refusal(413, f"the login form is over {LOGIN_MAX_BYTES} bytes")
+    try:
+        fields = parse_qs(body.decode("utf-8", "replace"), max_num_fields=LOGIN_MAX_FIELDS)
+    except ValueError:
+        return _form_refusal(400, f"the login form has more than {LOGIN_MAX_FIELDS} fields")
     token = fields.get("token", [""])[0]
     target = _local_path(fields.get("next", ["/"])[0])
     policy: AccessPolicy = getattr(request.app.state, "access_policy", None) or AccessPolicy()
     if policy.enabled and not policy.accepts(token):
         return HTMLResponse(_login_page(target, "invalid token"), status_code=401)
     response = RedirectResponse(target, status_code=status.HTTP_303_SEE_OTHER)
-    response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+    if policy.enabled:
+        if not _cookie_safe(token):
+            return _form_refusal(400, "this token cannot be kept in a cookie: send it as a header")
+        response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
     return response
+
+
+def _cookie_safe(token: str) -> bool:
+    """Printable ASCII without the characters a cookie value cannot hold."""
+    return token.isascii() and token.isprintable() and not any(c in token for c in ' ",;\\')
+
+
+def _form_refusal(code: int, detail: str) -> Response:
+    return HTMLResponse(f"<!doctype html><p role=alert>{html.escape(detail)}</p>", code)
 
 
 @login_router.post("/logout")

@@ -14,11 +14,14 @@ from typing import Literal
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from client.models import MAX_NODES
 from server.cpus import parse_cpu_list
+from server.db import EngineOptions, SqliteSynchronous
 from surrogate.config import AdditiveMode, SurrogateConfig
 
 DEFAULT_DATABASE_URL = "sqlite:///cpkb.db"
 DEFAULT_PORT = 8000
+DEFAULT_GRAPH_NODES = 8192
 
 
 class Settings(BaseSettings):
@@ -36,10 +39,19 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=32 * 1024 * 1024, ge=1024)
     default_page_size: int = Field(default=100, ge=1)
     max_page_size: int = Field(default=1000, ge=1)
+    # The nodes of the distinct graphs one request (a match, a post) may have hashed into types:
+    # hashing costs about 25 ms per 64-node graph, and a match is open to anyone (413 beyond).
+    # A planner's match of 500 graphs of its task stays well within.
+    max_request_graph_nodes: int = Field(default=DEFAULT_GRAPH_NODES, ge=MAX_NODES)
 
-    # Database behaviour.
-    sqlite_busy_timeout_ms: int = Field(default=30_000, ge=0)
-    pool_size: int = Field(default=10, ge=1)
+    # Database behaviour (server.db.EngineOptions says what each does).
+    sqlite_busy_timeout_ms: int = Field(default=EngineOptions.busy_timeout_ms, ge=0)
+    sqlite_synchronous: SqliteSynchronous = EngineOptions.sqlite_synchronous
+    pool_size: int = Field(default=EngineOptions.pool_size, ge=1)
+    pg_lock_timeout_ms: int = Field(default=EngineOptions.pg_lock_timeout_ms, ge=0)
+    pg_idle_in_transaction_timeout_ms: int = Field(
+        default=EngineOptions.pg_idle_in_transaction_timeout_ms, ge=0
+    )
 
     # Access (used by server.security).
     token: SecretStr | None = None
@@ -98,6 +110,16 @@ class Settings(BaseSettings):
     surrogate_pending_store: Literal["auto", "memory", "database"] = "auto"
     surrogate_claim_retry_s: float = Field(default=1.0, gt=0, le=60)
     replica_name: str | None = Field(default=None, min_length=1, max_length=128)
+
+    def engine_options(self) -> EngineOptions:
+        return EngineOptions(
+            busy_timeout_ms=self.sqlite_busy_timeout_ms,
+            pool_size=self.pool_size,
+            sqlite_synchronous=self.sqlite_synchronous,
+            pg_lock_timeout_ms=self.pg_lock_timeout_ms,
+            pg_idle_in_transaction_timeout_ms=self.pg_idle_in_transaction_timeout_ms,
+            application_name=self.replica_name or "cpkb",
+        )
 
     @field_validator("cpu_cores")
     @classmethod

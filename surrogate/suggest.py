@@ -120,15 +120,18 @@ def suggest(
     shared: Sequence[Mapping[str, Value]] = (),
     hints: Sequence[Mapping[str, Value]] = (),
     preferred: int = 0,
+    record: bool = True,
 ) -> SuggestAnswer:
     """The MPF maximiser over `request.space` for its constraints (a space-filling point when
     there are none), away from `exclude` and from the suggestions pending in `book` under `key`;
-    the answer's points are recorded there as pending. `shared`: more pending points, in this
-    request's variables, kept away from but not recorded (other planners'). `hints`: points in
-    this request's variables that the maximiser scores besides its own candidates, the first
-    `preferred` of them preferred (`surrogate.optimize.maximize_batch`). Raises
-    InvalidRequest naming the field, SpaceExhausted when a finite space is wholly excluded, and
-    whatever `source` raises for an unknown type."""
+    the answer's points are recorded there as pending (unless `record` is false: a caller
+    that may not write is answered without changing what others are told). `shared`: more
+    pending points, in this request's variables, kept away from but not recorded (other
+    planners'). `hints`: points in this request's variables that the maximiser scores besides
+    its own candidates, the first `preferred` of them preferred
+    (`surrogate.optimize.maximize_batch`). Raises InvalidRequest naming the field,
+    SpaceExhausted when a finite space is wholly excluded, and whatever `source` raises for an
+    unknown type."""
     _check_lookahead(request)
     models: dict[str, TypeModel] = {}
     terms: list[ConstraintTerm] = []
@@ -161,7 +164,7 @@ def suggest(
     except EncodingError as exc:
         raise InvalidRequest(str(exc)) from exc
     binds = [(c.type_id, c.bind) for c in request.constraints]
-    for point in points:
+    for point in points if record else ():
         proposed = {v: value for v, value in point.x.items() if v not in request.lookahead}
         book.add(key, proposed, binds)
     first = points[0]

@@ -30,9 +30,13 @@ router = APIRouter(prefix="/v1/kbs/{kb}", tags=["points"], responses=IN_KB)
 
 
 @router.post("/points", status_code=status.HTTP_201_CREATED, responses=errors(409) | BODY)
-def post_points(kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep) -> PointsOut:
-    """Store up to 1000 points in one transaction; a repeated `key` stores nothing twice."""
-    outcome = points.add_points(store, kb, body.points)
+def post_points(
+    kb: str, body: PointsIn, store: StoreDep, hooks: HooksDep, settings: SettingsDep
+) -> PointsOut:
+    """Store up to 1000 points in one transaction; a repeated `key` stores nothing twice.
+    413 when their distinct graphs hold more than CPKB_MAX_REQUEST_GRAPH_NODES nodes in all."""
+    max_nodes = settings.max_request_graph_nodes
+    outcome = points.add_points(store, kb, body.points, max_nodes=max_nodes)
     if outcome.n_new:
         record_points_ingested(kb, outcome.n_new, outcome.n_new_types)
         record_planner_suggests(p.source.model_extra if p.source else None for p in body.points)

@@ -10,7 +10,7 @@ from pydantic import BaseModel, Field
 
 
 class ErrorOut(BaseModel):
-    """Every 401, 404, 409, 413 and 503 answer."""
+    """Every 400, 401, 404, 409, 413 and 503 answer."""
 
     detail: str = Field(
         description="What was wrong, in a sentence a user can act on.",
@@ -35,6 +35,10 @@ class ValidationErrorOut(BaseModel):
 
 
 ERRORS: dict[int, tuple[str, str]] = {
+    400: (
+        "The body could not be read as JSON text (not UTF-8, say); nothing was stored.",
+        "There was an error parsing the body",
+    ),
     422: (
         "Invalid input: the answer names the field and never echoes large input back.",
         "points[0].x.#pose: 3 values for a 2-dimensional domain",
@@ -101,4 +105,4 @@ def _model(code: int) -> type[BaseModel]:
 COMMON = errors(401, 503)
 IN_KB = errors(401, 404, 503)  # a route under /v1/kbs/{kb}
 INVALID = errors(422)  # on each route with parameters: FastAPI adds its own 422 otherwise
-BODY = errors(413, 422)  # a route that reads a JSON body
+BODY = errors(400, 413, 422)  # a route that reads a JSON body

@@ -16,6 +16,7 @@ from client.models import (
     SuggestIn,
     SuggestOut,
 )
+from server.api.deps import WriterDep, in_heavy_lane
 from server.api.responses import BODY, IN_KB, errors
 from server.errors import Unavailable
 from server.surrogates import service
@@ -35,10 +36,13 @@ EngineDep = Annotated[SurrogateEngine, Depends(_engine)]
 
 
 @router.post("/suggest", responses=errors(409) | BODY)
-def suggest(kb: str, body: SuggestIn, engine: EngineDep) -> SuggestOut:
+async def suggest(
+    kb: str, body: SuggestIn, engine: EngineDep, writer: WriterDep, request: Request
+) -> SuggestOut:
     """The point of `space` maximising min_i P(constraint i feasible), fixed variables applied,
-    never an excluded point, away from suggestions still pending."""
-    return service.suggest(engine, kb, body)
+    never an excluded point, away from suggestions still pending. The answer is recorded as
+    pending only for a caller that may write (a valid token, where the service has one)."""
+    return await in_heavy_lane(request, service.suggest, engine, kb, body, record=writer)
 
 
 @router.post("/models", responses=BODY)
@@ -56,6 +60,8 @@ def pending(kb: str, body: PendingIn, engine: EngineDep) -> PendingOut:
 
 
 @router.post("/types/{type_id}/predict", responses=BODY)
-def predict(kb: str, type_id: str, body: PredictIn, engine: EngineDep) -> PredictOut:
+async def predict(
+    kb: str, type_id: str, body: PredictIn, engine: EngineDep, request: Request
+) -> PredictOut:
     """P(feasible) of each x under the type's current surrogate."""
-    return service.predict(engine, kb, type_id, body)
+    return await in_heavy_lane(request, service.predict, engine, kb, type_id, body)

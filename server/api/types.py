@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
 from client.models import MatchIn, MatchResult, TypeDetail, TypeSummary
-from server.api.deps import HooksDep, StoreDep
+from server.api.deps import HooksDep, SettingsDep, StoreDep, in_heavy_lane
 from server.api.responses import BODY, IN_KB, INVALID, errors
 from server.services import types
 
@@ -13,9 +13,15 @@ router = APIRouter(prefix="/v1/kbs/{kb}/types", tags=["types"], responses=IN_KB)
 
 
 @router.post("/match", responses=errors(409) | BODY)
-def match_types(kb: str, body: MatchIn, store: StoreDep) -> list[MatchResult]:
-    """Type IDs of the graphs and whether this knowledge base knows them; stores nothing."""
-    return types.match_types(store, kb, body.graphs)
+async def match_types(
+    kb: str, body: MatchIn, store: StoreDep, settings: SettingsDep, request: Request
+) -> list[MatchResult]:
+    """Type IDs of the graphs and whether this knowledge base knows them; stores nothing.
+    413 when the distinct graphs hold more than CPKB_MAX_REQUEST_GRAPH_NODES nodes in all."""
+    max_nodes = settings.max_request_graph_nodes
+    return await in_heavy_lane(
+        request, types.match_types, store, kb, body.graphs, max_nodes=max_nodes
+    )
 
 
 @router.get("", responses=INVALID)

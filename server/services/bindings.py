@@ -3,27 +3,50 @@
 
 from __future__ import annotations
 
+import logging
+
+from pydantic import ValidationError
 from sqlalchemy import func, or_, select
 
 from client.bindings import BindingIn, BindingOut, BindingsPage
 from server.db import Store
-from server.orm import BindingRow
+from server.errors import Conflict
+from server.orm import BindingRow, utcnow
 from server.services.kbs import kb_id
+from server.sql import insert_ignoring_conflicts
+
+log = logging.getLogger("cpkb.server")
 
 
 def add_binding(store: Store, kb: str, binding: BindingIn) -> BindingOut:
+    """Store a binding; one whose key is stored already stores nothing and gets the stored one
+    back (a retry after a lost answer), unless it differs from it (409)."""
+    values = {
+        "task": binding.task,
+        "skeleton": binding.skeleton,
+        "run": binding.run,
+        "rollout": binding.rollout,
+        "bindings": binding.bindings,
+    }
     with store.transaction(write=True) as session:
-        row = BindingRow(
-            kb_id=kb_id(session, kb),
-            task=binding.task,
-            skeleton=binding.skeleton,
-            run=binding.run,
-            rollout=binding.rollout,
-            bindings=binding.bindings,
+        kb_pk = kb_id(session, kb)
+        row = {"kb_id": kb_pk, "key": binding.key, "created_at": utcnow(), **values}
+        stmt = insert_ignoring_conflicts(session, BindingRow, ["kb_id", "key"])
+        new_id = session.scalar(stmt.values(row).returning(BindingRow.id))
+        stored = session.scalar(
+            select(BindingRow).where(
+                BindingRow.id == new_id
+                if new_id is not None
+                else (BindingRow.kb_id == kb_pk) & (BindingRow.key == binding.key)
+            )
         )
-        session.add(row)
-        session.flush()
-        return _out(row)
+        assert stored is not None  # inserted now, or under its key before
+        if any(getattr(stored, name) != value for name, value in values.items()):
+            raise Conflict(
+                f"idempotency key {binding.key!a} was already used for a different binding: "
+                "send a new key for a new binding"
+            )
+        return _out(stored)
 
 
 def list_bindings(
@@ -57,7 +80,19 @@ def list_bindings(
         more = len(rows) > limit
         rows = rows[:limit]
         cursor = rows[-1].id if more else max(top, after or 0)
-        return BindingsPage(bindings=[_out(row) for row in rows], cursor=cursor)
+        return BindingsPage(bindings=_readable(rows), cursor=cursor)
+
+
+def _readable(rows: list[BindingRow]) -> list[BindingOut]:
+    """The rows as answers, without any that no reader could take: a binding stored before
+    the routes refused non-finite numbers (SQLite kept a NaN) is skipped, not answered."""
+    found = []
+    for row in rows:
+        try:
+            found.append(_out(row))
+        except ValidationError as exc:
+            log.warning("binding %d skipped: %s", row.id, exc.errors()[0]["msg"])
+    return found
 
 
 def _out(row: BindingRow) -> BindingOut:

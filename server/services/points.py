@@ -37,7 +37,8 @@ from server.errors import Conflict, InvalidInput
 from server.graphs import GraphError, ResolvedGraph, check_x
 from server.orm import PointRow, TypeRow, utcnow
 from server.services.kbs import kb_id
-from server.services.types import check_or_409, resolve_or_422, type_row
+from server.services.types import check_graph_work, check_or_409, resolve_or_422, type_row
+from server.settings import DEFAULT_GRAPH_NODES
 from server.sql import insert_ignoring_conflicts
 
 INT64 = 2**63 - 1
@@ -177,8 +178,12 @@ def _types(
     return {t: (row.id, t in created) for t, row in stored.items()}
 
 
-def add_points(store: Store, kb: str, points: list[PointIn]) -> PostOutcome:
-    """Store a batch in one transaction; a repeated key gets its original result."""
+def add_points(
+    store: Store, kb: str, points: list[PointIn], *, max_nodes: int = DEFAULT_GRAPH_NODES
+) -> PostOutcome:
+    """Store a batch in one transaction; a repeated key gets its original result. 413 when
+    the batch's distinct graphs hold more than `max_nodes` nodes in all."""
+    check_graph_work((p.graph for p in points), max_nodes)
     resolved, rows = _prepare(points)
     with store.transaction(write=True) as session:
         kb_pk = kb_id(session, kb)

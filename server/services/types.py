@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -12,12 +13,24 @@ from sqlalchemy.orm import Session
 
 from client.models import Domain, Graph, MatchResult, TypeDetail, TypeSummary, Value
 from server.db import Store
-from server.errors import Conflict, InvalidInput, NotFound
+from server.errors import Conflict, InvalidInput, NotFound, TooLarge
 from server.graphs import GraphError, ResolvedGraph, TypeConflict, check_same_type, resolve_graph
 from server.orm import PointRow, TypeRow
 from server.services.kbs import kb_id
 
 _space_adapter: TypeAdapter[dict[str, Domain]] = TypeAdapter(dict[str, Domain])
+
+
+def check_graph_work(graphs: Iterable[Graph], max_nodes: int) -> None:
+    """413 when the distinct graphs of a request hold more than `max_nodes` nodes in all: the
+    work of hashing them is what a request may not ask for without bound."""
+    distinct = {graph.model_dump_json(): len(graph.nodes) for graph in graphs}
+    total = sum(distinct.values())
+    if total > max_nodes:
+        raise TooLarge(
+            f"the request's {len(distinct)} distinct graphs hold {total} nodes; one request "
+            f"may hold {max_nodes} (CPKB_MAX_REQUEST_GRAPH_NODES): send fewer graphs per request"
+        )
 
 
 def resolve_or_422(graph: Graph, where: str) -> ResolvedGraph:
@@ -56,8 +69,10 @@ def summary(row: TypeRow) -> TypeSummary:
     )
 
 
-def match_types(store: Store, kb: str, graphs: list[Graph]) -> list[MatchResult]:
-    """For each graph its type ID and whether the knowledge base has it (409 on a conflict)."""
+def match_types(store: Store, kb: str, graphs: list[Graph], *, max_nodes: int) -> list[MatchResult]:
+    """For each graph its type ID and whether the knowledge base has it (409 on a conflict;
+    413 for graphs of more than `max_nodes` nodes in all)."""
+    check_graph_work(graphs, max_nodes)
     resolved = [resolve_or_422(g, f"graphs[{i}]") for i, g in enumerate(graphs)]
     with store.transaction() as session:
         kb_pk = kb_id(session, kb)

@@ -33,9 +33,12 @@ from surrogate.suggest import InvalidRequest, SuggestRequest
 from surrogate.suggest import suggest as suggest_point
 
 
-def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
+def suggest(
+    engine: SurrogateEngine, kb: str, body: SuggestIn, *, record: bool = True
+) -> SuggestOut:
     """The MPF maximiser over `body.space` for the bound constraints (a space-filling point when
-    there are none), away from `exclude` and from suggestions still pending."""
+    there are none), away from `exclude` and from suggestions still pending; recorded as
+    pending itself when `record`."""
     if not body.constraints:
         with engine.store.transaction() as session:
             kb_id(session, kb)
@@ -46,6 +49,7 @@ def suggest(engine: SurrogateEngine, kb: str, body: SuggestIn) -> SuggestOut:
             engine.pending,
             key=kb,
             config=engine.config.optimizer,
+            record=record,
         )
     except InvalidRequest as exc:
         raise InvalidInput(str(exc)) from exc

@@ -13,7 +13,7 @@ from migrations import VERSION_TABLE, current_revision, downgrade, upgrade
 from server.db import make_engine
 from server.orm import Base
 
-HEAD = "0004"
+HEAD = "0005"
 
 
 def test_empty_database_to_head_and_no_autogenerate_diff(db_url: str) -> None:

@@ -73,7 +73,7 @@ def test_every_route_declares_the_errors_it_can_answer(spec: dict[str, Any]) -> 
         if "{kb}" in path:
             assert {"404", "422"} <= codes, where
         if method == "POST":
-            assert {"413", "422"} <= codes, where
+            assert {"400", "413", "422"} <= codes, where
     conflicts = {(m, p) for m, p, op in operations if "409" in op["responses"]}
     assert {
         ("POST", "/v1/kbs"),
@@ -114,6 +114,13 @@ def test_the_answers_have_the_declared_shapes(app_client: Any) -> None:
     refused = app_client.get(f"/v1/kbs/default/types/{type_id}/points", params={"cursor": "zz"})
     assert refused.status_code == 422
     assert ValidationErrorOut.model_validate(refused.json()).detail.startswith("cursor:")
+    # A body that is not UTF-8 is the declared 400.
+    unreadable = app_client.post(
+        "/v1/kbs/default/points",
+        content=b'{"points": "\xff"}',
+        headers={"content-type": "application/json"},
+    )
+    assert unreadable.status_code == 400 and ErrorOut.model_validate(unreadable.json()).detail
 
 
 def test_the_csv_route_declares_and_answers_text_csv(spec: dict[str, Any], app_client: Any) -> None:
