@@ -20,9 +20,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints
+from surrogate.config import OptimizerConfig
 from surrogate.domains import Domain, Value, domain_to_json, space_from_json
 from surrogate.encoding import EncodingError, encoder_for, same_domain, value_column
-from surrogate.optimize import OptimizerConfig, maximize_batch, space_filling
+from surrogate.optimize import maximize_batch, space_filling
 from surrogate.pending import Pending
 from surrogate.predictors import FeasibilityPredictor
 
