@@ -5,10 +5,9 @@ from __future__ import annotations
 from alembic import context
 from sqlalchemy import create_engine
 
-from server.orm import Base
-
 config = context.config
-target_metadata = Base.metadata
+# Only writing a revision compares tables (see `migrations`); upgrades run the revisions as such.
+target_metadata = config.attributes.get("target_metadata")
 
 
 def _configure_and_run(connection) -> None:  # type: ignore[no-untyped-def]

@@ -84,6 +84,11 @@ class Store:
         return cls(make_engine(url, busy_timeout_ms=busy_timeout_ms, pool_size=pool_size))
 
     @property
+    def write_engine(self) -> Engine:
+        """The engine whose transactions write (on SQLite: `BEGIN IMMEDIATE`)."""
+        return self._write_engine
+
+    @property
     def dialect(self) -> str:
         return self.engine.dialect.name
 

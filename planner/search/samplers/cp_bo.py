@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from client.models import CategoricalDomain, Constraint, Value
 from planner.config import CpBoConfig, PlanConfig, QuasiRandomConfig
 from planner.knowledge import KnowledgeSession
-from planner.search.samplers import register
 from planner.search.samplers.base import Proposal, SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
@@ -211,12 +210,9 @@ def _valid(value: Value, ctx: SampleContext) -> bool:
     )
 
 
-def _factory(
+def factory(
     *, config: PlanConfig, knowledge: KnowledgeSession | None = None, **_: object
 ) -> CpBoSampler:
     if knowledge is None:
         raise ValueError("cp-bo needs a knowledge session")
     return CpBoSampler(knowledge, config.cp_bo, config.quasi_random)
-
-
-register("cp-bo", _factory, uses_knowledge=True)

@@ -16,7 +16,6 @@ from dataclasses import replace
 
 from client.models import CategoricalDomain, Value
 from planner.config import MctsBoConfig, PlanConfig, QuasiRandomConfig
-from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
@@ -91,8 +90,5 @@ class MctsBoSampler:
         self._fits.clear()
 
 
-def _factory(*, config: PlanConfig, **_: object) -> MctsBoSampler:
+def factory(*, config: PlanConfig, **_: object) -> MctsBoSampler:
     return MctsBoSampler(config.mcts_bo, config.quasi_random)
-
-
-register("mcts-bo", _factory)
