@@ -7,10 +7,10 @@ service's write engine, `server.db.Store.write_engine`, begins with), so that se
 starting at once on one database migrate it once.
 
 Imports nothing of the service: the service runs its migrations (`server.schema`), not the
-other way round. A new revision is written against the service's tables by handing them in:
-`config = alembic_config(); config.attributes["target_metadata"] = server.orm.Base.metadata;
-alembic.command.revision(config, "message", autogenerate=True, rev_id="0005")` on a connection
-to a database at head (`config.attributes["connection"]`);
+other way round. A new revision is written against the service's tables by handing them in,
+on a connection to a database at head: `config = alembic_config(connection)`,
+`config.attributes["target_metadata"] = server.orm.Base.metadata`, then
+`alembic.command.revision(config, "message", autogenerate=True, rev_id="0005")`.
 `tests/migrations/test_schema_migrations.py` checks that the tables and the revisions agree.
 """
 
