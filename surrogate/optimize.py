@@ -24,8 +24,10 @@ does not know yet.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pymoo.core.population import Population
@@ -105,7 +107,14 @@ class _MixedSBX(SBX):
         super().__init__(**kwargs)
         self.categorical = categorical
 
-    def _do(self, problem, X, *args, random_state=None, **kwargs):  # type: ignore[no-untyped-def]
+    def _do(
+        self,
+        problem: Problem,
+        X: np.ndarray,
+        *args: Any,
+        random_state: np.random.Generator,
+        **kwargs: Any,
+    ) -> np.ndarray:
         q = super()._do(problem, X, *args, random_state=random_state, **kwargs)
         if self.categorical.any():
             cat = self.categorical
@@ -120,7 +129,14 @@ class _MixedPM(PM):
         super().__init__(**kwargs)
         self.categorical = categorical
 
-    def _do(self, problem, X, *args, random_state=None, **kwargs):  # type: ignore[no-untyped-def]
+    def _do(
+        self,
+        problem: Problem,
+        X: np.ndarray,
+        *args: Any,
+        random_state: np.random.Generator,
+        **kwargs: Any,
+    ) -> np.ndarray:
         cat = self.categorical
         out = super()._do(problem, X, *args, random_state=random_state, **kwargs)
         if cat.any():
@@ -315,9 +331,8 @@ def _select(
 
 
 def _finite_size(free: Mapping[str, Domain]) -> int | None:
-    if not all(isinstance(d, CategoricalDomain) for d in free.values()):
-        return None
-    return int(np.prod([len(d.choices) for d in free.values()]))  # type: ignore[union-attr]
+    sizes = [len(d.choices) for d in free.values() if isinstance(d, CategoricalDomain)]
+    return math.prod(sizes) if len(sizes) == len(free) else None
 
 
 def _candidates(

@@ -85,12 +85,16 @@ class PriorPredictor:
     ) -> PriorPredictor:
         """This prior in the counting form of `strength` pseudo-points, with `feasible` `(a, D)`
         and `infeasible` `(b, D)` more points joined to its own."""
-        more = {
-            name: np.vstack([getattr(self, name), extra])
-            for name, extra in (("feasible", feasible), ("infeasible", infeasible))
-            if extra is not None and len(extra)
-        }
-        return dataclasses.replace(self, strength=strength, **more)
+
+        def joined(own: np.ndarray, extra: np.ndarray | None) -> np.ndarray:
+            return own if extra is None or not len(extra) else np.vstack([own, extra])
+
+        return dataclasses.replace(
+            self,
+            strength=strength,
+            feasible=joined(self.feasible, feasible),
+            infeasible=joined(self.infeasible, infeasible),
+        )
 
     def by_choice(self, choices: tuple[tuple[slice, np.ndarray], ...]) -> PriorPredictor:
         """This prior with its centre set per categorical choice (see the class): a grasp

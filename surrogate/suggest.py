@@ -185,7 +185,9 @@ def _check_lookahead(request: SuggestRequest) -> None:
         raise InvalidRequest("lookahead: leaves no variable of space to suggest")
 
 
-def _check_binding(i: int, constraint: Constraint, model: TypeModel, request: SuggestRequest):
+def _check_binding(
+    i: int, constraint: Constraint, model: TypeModel, request: SuggestRequest
+) -> None:
     """Every decision of the type bound, to a variable of the space (of the same domain) or to a
     valid fixed value; no label the type does not have."""
     bind, type_id = constraint.bind, constraint.type_id

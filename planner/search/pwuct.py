@@ -328,10 +328,11 @@ class PWUCT:
             started = time.perf_counter()
             proposal = chosen if chosen is not None else self.sampler.propose(ctx)
             self.sample_s += time.perf_counter() - started
-            value = proposal
             if isinstance(proposal, Proposal):
                 value = proposal.value
                 note_proposal(node, proposal.p_feasible, self.config)
+            else:
+                value = proposal
             if node.n_choices is not None and value in ctx.siblings:
                 raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

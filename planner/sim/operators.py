@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -219,7 +220,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         candidates = [grasp] if direction == "top" else [grasp, rolled(grasp)]
     check = ex.checker()
     rng = np.random.default_rng(ex.draw_seed(call, body_pose, candidates[0].direction))
-    options = dict(
+    options: dict[str, Any] = dict(
         restarts=s.ik_restarts,
         iterations=s.ik_iterations,
         tolerance=s.ik_tolerance,

@@ -176,8 +176,8 @@ def _choice_panel(
 ) -> str:
     total: Counter[str] = Counter()
     good: Counter[str] = Counter()
-    for x, feasible in observed:
-        choice = x.get(label)
+    for point, feasible in observed:
+        choice = point.get(label)
         if isinstance(choice, str):
             total[choice] += 1
             good[choice] += int(feasible)

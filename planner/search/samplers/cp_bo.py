@@ -17,9 +17,10 @@ Each of these extensions of the paper's sampler has its switch in `CpBoConfig`; 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from client.models import CategoricalDomain, Constraint, Value
+from client.models import CategoricalDomain, Constraint, SuggestedPoint, SuggestOut, Value
 from planner.config import CpBoConfig, PlanConfig, QuasiRandomConfig
 from planner.knowledge import KnowledgeSession
 from planner.search.samplers.base import Proposal, SampleContext
@@ -143,7 +144,7 @@ class CpBoSampler:
         )
         if answer is None:
             return None
-        points = answer.batch or [answer]
+        points: Sequence[SuggestedPoint | SuggestOut] = answer.batch or [answer]
         proposals = [
             Proposal(value, point.mpf)
             for point in points
