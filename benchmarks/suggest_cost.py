@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from client import CpkbClient
-from client.models import SuggestIn
+from contract.models import SuggestIn
 from cpkb.embedded import embedded_service
 from planner.run import run_plan
 from server.db import Store

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from surrogate.acquisition import MPF, ConstraintTerm
 from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import PlanConfig, SimConfig, method_config
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry

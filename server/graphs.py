@@ -22,7 +22,7 @@ from typing import Any
 import networkx as nx
 from networkx.algorithms.isomorphism import DiGraphMatcher
 
-from client.models import CategoricalDomain, ContinuousDomain, Graph, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Graph, Value
 
 Domain = CategoricalDomain | ContinuousDomain
 # Each edge is two hops once subdivided: 6 iterations see as far as 3 on the graph itself.

@@ -160,7 +160,7 @@ class PendingRow(Base):
 
 
 class BindingRow(Base):
-    """A binding list a planner found for its task (`client.bindings`)."""
+    """A binding list a planner found for its task (`contract.bindings`)."""
 
     __tablename__ = "cp_bindings"
     __table_args__ = (Index("ix_cp_bindings_kb_id_skeleton_id", "kb_id", "skeleton", "id"),)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from client import CpkbClient
-    from client.models import TypeDetail
+    from contract.models import TypeDetail
 
 FIT_WAIT_S = 120.0
 SETTLED = frozenset({"ready", "prior", "error"})

@@ -361,7 +361,7 @@ def _types(args: argparse.Namespace) -> int:
 def _bindings(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    from client.bindings import MAX_BINDINGS_PAGE
+    from contract.bindings import MAX_BINDINGS_PAGE
 
     limit = MAX_BINDINGS_PAGE if args.limit is None else args.limit
     if not 1 <= limit <= MAX_BINDINGS_PAGE:

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from client import models as wire
-from client.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
+from contract import models as wire
+from contract.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
 from planner.config import KnowledgeConfig
 from surrogate import snapshot
 from surrogate.config import OptimizerConfig, SurrogateConfig

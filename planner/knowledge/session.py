@@ -23,7 +23,7 @@ from functools import lru_cache
 from typing import Any, Protocol
 
 from client.errors import BadRequest
-from client.models import (
+from contract.models import (
     MAX_PENDING_REPORT,
     MAX_WATCHED_TYPES,
     Constraint,

@@ -12,7 +12,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import cast
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
 from planner.world import CheckResult, Culprit, TransitionOutcome, WorldGeometry
 

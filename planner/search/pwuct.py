@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import SearchConfig
 from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import SimConfig
 from planner.sim.geometry import Pose, derived_seed, quat_from_axes, rotation
 from planner.sim.grasps import (

@@ -6,7 +6,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
-from client.models import CategoricalDomain, Value
+from contract.models import CategoricalDomain, Value
 from planner.config import SimConfig
 from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 from sqlalchemy import text
 
-from client.models import Health
+from contract.models import Health
 from server import __version__
 from server.api.deps import StoreDep
 from server.api.responses import errors

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request
 
-from client.models import (
+from contract.models import (
     ModelsIn,
     ModelsOut,
     PendingIn,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from client.models import MatchIn, MatchResult, TypeDetail, TypeSummary
+from contract.models import MatchIn, MatchResult, TypeDetail, TypeSummary
 from server.api.deps import HooksDep, StoreDep
 from server.api.responses import BODY, IN_KB, INVALID, errors
 from server.services import types

@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 
 Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]

@@ -15,7 +15,7 @@ from collections import Counter
 from collections.abc import Sequence
 from html import escape
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from server.dashboard.heatmap import FONT, Dim, Predict, Slice, Value, continuous_dims
 
 _W = 230.0

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from sqlalchemy import func, or_, select
 
-from client.bindings import BindingIn, BindingOut, BindingsPage
+from contract.bindings import BindingIn, BindingOut, BindingsPage
 from server.db import Store
 from server.orm import BindingRow
 from server.services.kbs import kb_id

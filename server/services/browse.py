@@ -11,7 +11,7 @@ from typing import Any
 
 from sqlalchemy import Select, func, select
 
-from client.models import PointOut, TypeSummary
+from contract.models import PointOut, TypeSummary
 from server.db import Store
 from server.orm import PointRow, TypeRow
 from server.services.kbs import kb_id

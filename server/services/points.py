@@ -20,7 +20,7 @@ from typing import Any, cast
 from sqlalchemy import Table, bindparam, func, insert, or_, select, update
 from sqlalchemy.orm import Session
 
-from client.models import (
+from contract.models import (
     MAX_SOURCE_DEPTH,
     LivePoint,
     PointIn,

@@ -39,7 +39,7 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from client.models import SurrogateState
+from contract.models import SurrogateState
 from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points

@@ -7,7 +7,7 @@ field; SpaceExhausted (a finite space wholly excluded) is a 409.
 
 from __future__ import annotations
 
-from client.models import (
+from contract.models import (
     Constraint,
     ModelsIn,
     ModelSnapshot,

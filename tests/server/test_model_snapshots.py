@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from suggest_support import post_points
 
-from client.models import ModelSnapshot
+from contract.models import ModelSnapshot
 from surrogate import snapshot
 from surrogate.encoding import SpaceEncoder
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from service_support import make_graph, make_point
 
-from client.models import PointIn
+from contract.models import PointIn
 from server.db import Store
 from server.schema import prepare_database
 from server.services.points import add_points

@@ -20,7 +20,7 @@ import pytest
 
 from client import CpkbClient
 from client.errors import BadRequest
-from client.models import PointIn, SuggestIn, SuggestOut
+from contract.models import PointIn, SuggestIn, SuggestOut
 from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from
 from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json

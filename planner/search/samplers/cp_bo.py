@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from client.models import CategoricalDomain, Constraint, SuggestedPoint, SuggestOut, Value
+from contract.models import CategoricalDomain, Constraint, SuggestedPoint, SuggestOut, Value
 from planner.config import CpBoConfig, PlanConfig, QuasiRandomConfig
 from planner.knowledge import KnowledgeSession
 from planner.search.samplers.base import Proposal, SampleContext

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from client.models import CategoricalDomain, Value
+from contract.models import CategoricalDomain, Value
 from planner.config import MctsBoConfig, PlanConfig, QuasiRandomConfig
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import space_filling

@@ -19,7 +19,7 @@ import optuna
 from optuna.distributions import BaseDistribution, CategoricalDistribution, FloatDistribution
 from optuna.trial import Trial, TrialState
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.config import OptunaTpeConfig, PlanConfig
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import untried_choice

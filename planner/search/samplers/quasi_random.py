@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.config import PlanConfig, QuasiRandomConfig
 from planner.search.samplers.base import SampleContext
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from client import CpkbClient
-from client.models import SuggestIn
+from contract.models import SuggestIn
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from, stated_prior
