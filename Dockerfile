@@ -25,6 +25,7 @@ COPY pyproject.toml README.md LICENSE ./
 COPY cpkb ./cpkb
 COPY server ./server
 COPY client ./client
+COPY contract ./contract
 COPY planner ./planner
 COPY surrogate ./surrogate
 COPY migrations ./migrations

@@ -22,17 +22,21 @@ demo: setup
 test: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
 # The inner loop: everything but the tests marked slow, postgres or browser (see pyproject.toml).
 test-fast: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 	$(BIN)/python -m pytest -m "not slow and not postgres and not browser" -q
 
+# ruff, then mypy over the packages listed in pyproject.toml ([tool.mypy] files).
 lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 
 format: setup
 	$(BIN)/ruff check --fix .

@@ -24,8 +24,9 @@ import numpy as np
 
 from surrogate.acquisition import PendingPoints, Scored
 from surrogate.avoid import AvoidSet
+from surrogate.config import OptimizerConfig
 from surrogate.domains import CategoricalDomain, ContinuousDomain
-from surrogate.optimize import OptimizerConfig, maximize_batch
+from surrogate.optimize import maximize_batch
 
 SPACE = {
     "#dir2": CategoricalDomain(choices=["top", "front", "back", "left", "right"]),

@@ -1,7 +1,7 @@
 """What one open dashboard tab costs the service: the overview's poll (`/ui/api/overview`) and
 a type page's poll on a knowledge base with many types.
 
-Starts `cpkb serve` on a fresh SQLite file with surrogate fits off (CPKB_SURROGATE_ENABLED=false,
+Starts `cpkb serve` on a fresh SQLite file with surrogate fits off (CPKB_SURROGATE__ENABLED=false,
 so that fits do not load the machine while it measures), posts --types types of --points points
 each (tasks and runs spread over them), then requests each poll URL --rounds times and writes
 the median and p95 latency and the answer's size to --out as JSON.
@@ -89,7 +89,7 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         db = f"sqlite:///{Path(tmp) / 'kb.sqlite'}"
-        env = {"CPKB_SURROGATE_ENABLED": "false"}
+        env = {"CPKB_SURROGATE__ENABLED": "false"}
         with embedded_service(db, env=env) as url, CpkbClient(url) as client:
             type_id = _stock(client, args.types, args.points)
             result = {

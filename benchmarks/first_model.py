@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", type=int, default=60, help="first points per type")
     parser.add_argument("--asks", type=int, default=10, help="suggestions per phase")
     parser.add_argument(
-        "--instant-fit-points", type=int, default=SurrogateConfig.instant_fit_points
+        "--instant-fit-points", type=int, default=SurrogateConfig().instant_fit_points
     )
     parser.add_argument("--timeout", type=float, default=300.0)
     parser.add_argument(
@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
-    env = {"CPKB_SURROGATE_INSTANT_FIT_POINTS": str(args.instant_fit_points)}
+    env = {"CPKB_SURROGATE__INSTANT_FIT_POINTS": str(args.instant_fit_points)}
     trials = []
     with (
         tempfile.TemporaryDirectory(prefix="cpkb-first-") as tmp,

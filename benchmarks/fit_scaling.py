@@ -95,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     result = {
         "command": " ".join(["benchmarks/fit_scaling.py", *(argv or sys.argv[1:])]),
         "when": datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ"),
-        "max_fit_points": SurrogateConfig.max_fit_points,
-        "max_inducing": SurrogateConfig.max_inducing,
+        "max_fit_points": SurrogateConfig().max_fit_points,
+        "max_inducing": SurrogateConfig().max_inducing,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
         "rows": rows,
     }

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from pydantic import TypeAdapter
 
-from client.models import Domain
+from contract.models import Domain
 from server.dashboard.heatmap import choose_slice, continuous_dims, render_heatmap_svg
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder

@@ -45,7 +45,7 @@ from typing import Any
 import httpx
 import numpy as np
 
-from client.models import MAX_POINTS_PER_POST
+from contract.models import MAX_POINTS_PER_POST
 from cpkb.embedded import wait_ready
 
 REPO = Path(__file__).resolve().parent.parent

@@ -24,13 +24,14 @@ from pathlib import Path
 from typing import Any
 
 from client import CpkbClient
-from client.models import SuggestIn
+from contract.models import SuggestIn
 from cpkb.embedded import embedded_service
 from planner.run import run_plan
 from server.db import Store
+from server.settings import ServiceSurrogateConfig
 from server.surrogates import service
-from server.surrogates.engine import EngineConfig, SurrogateEngine
-from surrogate.optimize import OptimizerConfig
+from server.surrogates.engine import SurrogateEngine
+from surrogate.config import OptimizerConfig
 from surrogate.pending import PendingBook
 
 GENERATIONS = (0, 1, 2, 3, 5, 20)
@@ -70,7 +71,7 @@ def record_run(url: str, task: str, seed: int) -> list[SuggestIn]:
 
 
 def replay(db_url: str, requests: list[SuggestIn]) -> list[dict[str, Any]]:
-    engine = SurrogateEngine(Store.from_url(db_url), EngineConfig(fit_in_child_process=False))
+    engine = SurrogateEngine(Store.from_url(db_url), ServiceSurrogateConfig(fit_process=False))
     for request in requests:
         for constraint in request.constraints:
             engine.model("bench", constraint.type_id)
@@ -79,8 +80,8 @@ def replay(db_url: str, requests: list[SuggestIn]) -> list[dict[str, Any]]:
     rows = []
     try:
         for n_gen in GENERATIONS:
-            optimizer = OptimizerConfig(n_gen=n_gen, margin=0.1, margin_abs=0.025)
-            engine.config = EngineConfig(fit_in_child_process=False, optimizer=optimizer)
+            optimizer = OptimizerConfig(generations=n_gen, mpf_margin=0.1, mpf_margin_abs=0.025)
+            engine.config = ServiceSurrogateConfig(fit_process=False, optimizer=optimizer)
             seconds, values = [], []
             for _ in range(REPEATS):
                 for request in requests:

@@ -24,12 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from surrogate.acquisition import MPF, ConstraintTerm
+from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_label_regression, warm_up
-from surrogate.optimize import OptimizerConfig, maximize, space_filling
+from surrogate.optimize import maximize, space_filling
 
 DIRS = ["front", "right", "top", "back", "left"]
 APPROACH = {
@@ -143,7 +144,7 @@ def optimizer_cut(n_points: int, seeds: int, seed: int) -> list[dict[str, Any]]:
             times.append(time.perf_counter() - t0)
         rows.append(
             {
-                "config": f"{name} pop {cfg.pop_size} x {cfg.n_gen} gen",
+                "config": f"{name} pop {cfg.pop_size} x {cfg.generations} gen",
                 "mpf_mean": float(np.mean(values)),
                 "mpf_min": float(np.min(values)),
                 "ms_p50": 1000 * float(np.median(times)),

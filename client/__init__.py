@@ -1,4 +1,5 @@
-"""The light client side of cpkb: wire models (`client.models`), `CpkbClient`, its errors."""
+"""The light client side of cpkb: `CpkbClient` and its errors, speaking the wire contract
+(`contract`)."""
 
 from client.client import CpkbClient, split_urls
 from client.errors import (

@@ -29,9 +29,9 @@ from typing import Any
 import httpx
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from client.bindings import BindingIn, BindingOut, BindingsPage
 from client.errors import CpkbError, NotFound, ServiceUnavailable, error_for
-from client.models import (
+from contract.bindings import BindingIn, BindingOut, BindingsPage
+from contract.models import (
     MAX_POINTS_PER_POST,
     Graph,
     Health,

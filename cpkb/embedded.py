@@ -78,6 +78,18 @@ def stop_process(process: subprocess.Popen[bytes], timeout: float = STOP_TIMEOUT
 
 
 @contextmanager
+def service_url(kb_url: str | None, db_url: str | None = None) -> Iterator[str]:
+    """`kb_url` as is, or that of an embedded service for the command's planner on `db_url`
+    (default: the service's own default database, CPKB_DATABASE_URL or ./cpkb.db, so knowledge
+    persists across runs), kept off one core, which the planner gets to itself."""
+    if kb_url is not None:
+        yield kb_url
+        return
+    with embedded_service(db_url, planner_cores=1) as url:
+        yield url
+
+
+@contextmanager
 def embedded_service(
     db_url: str | None = None,
     *,

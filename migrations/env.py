@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 from alembic import context
-from sqlalchemy import create_engine
-
-from server.orm import Base
+from sqlalchemy import Connection, create_engine
 
 config = context.config
-target_metadata = Base.metadata
+# Only writing a revision compares tables (see `migrations`); upgrades run the revisions as such.
+target_metadata = config.attributes.get("target_metadata")
 
 
-def _configure_and_run(connection) -> None:  # type: ignore[no-untyped-def]
+def _configure_and_run(connection: Connection) -> None:
     context.configure(
         connection=connection,
         target_metadata=target_metadata,

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from surrogate.config import SurrogateConfig
+from surrogate.config import OptimizerConfig
 
 
 class ConfigError(ValueError):
@@ -330,7 +330,7 @@ class KnowledgeConfig:
     run's own failures; one that keeps being right keeps it. The paper trusts every model."""
     model_evidence_prior: float = 0.8
     """With `model_evidence`, the weight of the fetched model before this run has any point."""
-    spread_walls: bool = SurrogateConfig.spread_walls
+    spread_walls: bool = OptimizerConfig().spread_walls
     """Where this planner maximises MPF, the margin rule's spread keeps a node's children off
     the faces of its box (`surrogate.avoid.AvoidSet.spread`); off, its most spread point may
     lie on a face or in a corner, as the quasi-random baseline's does. The service's own

@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.table import Table
 
 from planner.display import live_progress
-from planner.run import PlanResult, knowledge_service, run_plan
+from planner.run import PlanResult, run_plan
 
 
 def _run(console: Console, label: str, **kwargs: Any) -> PlanResult:
@@ -29,15 +29,18 @@ def _run(console: Console, label: str, **kwargs: Any) -> PlanResult:
 
 
 def run_demo(
+    kb_url: str,
     *,
     seeds: int = 3,
     predecessor_rollouts: int = 30,
-    db: str | None = None,
-    kb_url: str | None = None,
     prefix: str = "",
+    embedded: bool = False,
+    db: str | None = None,
 ) -> int:
     """`prefix` selects the worlds: "" for the PyBullet tasks, "analytic:" for the analytic ones;
-    the knowledge base is the service at `kb_url`, else an embedded one on `db`."""
+    the knowledge base is the service at `kb_url`. `embedded`: that service was started for the
+    demo on `db` (None: the service's default database) and ends with it, so the next steps
+    start one on the same database."""
     console = Console(stderr=True)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     rows: list[tuple[int, str, PlanResult, PlanResult, PlanResult]] = []
@@ -45,30 +48,29 @@ def run_demo(
         "[bold]cpkb demo[/]: deskP then desk with cp-bo on one knowledge base, "
         "beside desk with quasi-random"
     )
-    with knowledge_service(kb_url, db) as url:
-        for seed in range(seeds):
-            kb = f"demo-{stamp}-seed{seed}"
-            common = {"seed": seed, "kb_url": url, "kb": kb}
-            learn = _run(
-                console,
-                f"seed {seed} deskP cp-bo",
-                task=f"{prefix}deskP",
-                method="cp-bo",
-                max_rollouts=predecessor_rollouts,
-                stop_at_first=False,
-                **common,
-            )
-            guided = _run(
-                console, f"seed {seed} desk  cp-bo", task=f"{prefix}desk", method="cp-bo", **common
-            )
-            baseline = _run(
-                console,
-                f"seed {seed} desk  quasi-random",
-                task=f"{prefix}desk",
-                method="quasi-random",
-                seed=seed,
-            )
-            rows.append((seed, kb, learn, guided, baseline))
+    for seed in range(seeds):
+        kb = f"demo-{stamp}-seed{seed}"
+        common = {"seed": seed, "kb_url": kb_url, "kb": kb}
+        learn = _run(
+            console,
+            f"seed {seed} deskP cp-bo",
+            task=f"{prefix}deskP",
+            method="cp-bo",
+            max_rollouts=predecessor_rollouts,
+            stop_at_first=False,
+            **common,
+        )
+        guided = _run(
+            console, f"seed {seed} desk  cp-bo", task=f"{prefix}desk", method="cp-bo", **common
+        )
+        baseline = _run(
+            console,
+            f"seed {seed} desk  quasi-random",
+            task=f"{prefix}desk",
+            method="quasi-random",
+            seed=seed,
+        )
+        rows.append((seed, kb, learn, guided, baseline))
     out = Console()
     out.print(_table(rows))
     cp_mean = statistics.mean(r[3].rollouts for r in rows)
@@ -83,10 +85,10 @@ def run_demo(
     last_kb = rows[-1][1]
     cpkb = _command()
     serve = f"{cpkb} serve --db {db}" if db else f"{cpkb} serve"
-    url = kb_url or "http://127.0.0.1:8000"
+    url = "http://127.0.0.1:8000" if embedded else kb_url
     out.print(
         "\n[bold]Where to look next[/]\n"
-        f"  {serve + ', then ' if kb_url is None else ''}open {url}/ "
+        f"  {serve + ', then ' if embedded else ''}open {url}/ "
         "(types, causal graphs, points, feasibility maps)\n"
         f"  {cpkb} types --kb-url {url} --kb {last_kb}   the types deskP and desk learned\n"
         f"  {cpkb} plan --task regrasp --method cp-bo --kb-url {url} --kb {last_kb}\n"

@@ -4,17 +4,29 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterator
+from typing import Protocol
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-from planner.run import Progress as PlanProgress
 
 MAX_LABEL = 28  # a task file's long path is cut to its end
 BAR_WIDTHS = (6, 40)  # the bar's narrowest and widest
 DEPTH = len("best depth 0.00")
 TYPES = len("  types 10 active (10 from the KB)")
 ELAPSED = len("0:00:00")
+
+
+class PlanProgress(Protocol):
+    """What the line shows of a search (`planner.run.Progress`)."""
+
+    @property
+    def rollouts(self) -> int: ...
+    @property
+    def best_depth(self) -> float: ...
+    @property
+    def types_active(self) -> int: ...
+    @property
+    def types_activated(self) -> int: ...
 
 
 @contextlib.contextmanager

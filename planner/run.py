@@ -3,26 +3,25 @@
 `run_plan` is the single entry point of `cpkb plan`, `cpkb demo` and `cpkb bench`; a `PlanRequest`
 says what to run. A task is a shipped task name, a task file, `analytic:<desk|deskP>` (the
 simulator-free worlds of `planner.search.analytic`) or a ready `BindingWorld`. Methods that use
-the knowledge base reach it at `kb_url`, or, with none given, in an embedded service on a
-temporary SQLite file. Every knob of the run is in the request's `PlanConfig`, recorded whole in
-its result.
+the knowledge base reach it at `kb_url`: the command line hands in the URL of a service it
+started (`cpkb.embedded`) when it was given none. Every knob of the run is in the request's
+`PlanConfig`, recorded whole in its result.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
 import random
 import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import PlanConfig, SimConfig, method_config
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
@@ -63,7 +62,6 @@ class PlanRequest:
     kb: str = "default"
     token: str | None = None
     worker: str | None = None
-    db_url: str | None = None
     suggest_in: str = "planner"
     gui: bool = False
     config: PlanConfig = field(default_factory=PlanConfig)
@@ -165,20 +163,6 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-@contextlib.contextmanager
-def knowledge_service(kb_url: str | None, db_url: str | None = None) -> Iterator[str]:
-    """`kb_url` as is, or an embedded service for this run on `db_url` (default: the service's
-    own default database, CPKB_DATABASE_URL or ./cpkb.db, so knowledge persists across runs),
-    kept off one core, which the planner gets to itself."""
-    if kb_url is not None:
-        yield kb_url
-        return
-    from cpkb.embedded import embedded_service
-
-    with embedded_service(db_url, planner_cores=1) as url:
-        yield url
-
-
 def run_plan(
     task: PlanRequest | str | Path | BindingWorld,
     method: str | None = None,
@@ -241,10 +225,9 @@ def _plan_with_knowledge(
     from planner.knowledge import KnowledgeSession
 
     config = request.config
-    with (
-        knowledge_service(request.kb_url, request.db_url) as url,
-        CpkbClient(url, token=request.token) as client,
-    ):
+    if request.kb_url is None:
+        raise ValueError(f"{request.method} needs a knowledge base: give kb_url")
+    with CpkbClient(request.kb_url, token=request.token) as client:
         client.create_kb(request.kb, exist_ok=True)
         session = KnowledgeSession(
             client,

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from client.models import Domain
+from contract.models import Domain
 
 LayerKind = Literal["decision", "transition"]
 

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from client.models import Value
+from contract.models import Value
 from planner.skeleton import OperatorCall, Skeleton
 
 

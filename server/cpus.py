@@ -1,7 +1,7 @@
 """CPU core lists as Linux writes them (`1`, `1-3`, `0,2-3`): which cores a service runs on.
 
 The embedded service of `cpkb plan` and `cpkb bench` shares a machine with its planners. A nice
-value (`Settings.surrogate_nice`) only lowers the fits' priority: they still get a share of a
+value (`Settings.surrogate.nice`) only lowers the fits' priority: they still get a share of a
 planner's core whenever they land on it, and evict its caches. Kept to the cores the planners
 leave, the fits never stand between a planner and its next rollout.
 """

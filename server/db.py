@@ -140,6 +140,11 @@ class Store:
         return cls(make_engine(url, options), make_probe_engine(url, options))
 
     @property
+    def write_engine(self) -> Engine:
+        """The engine whose transactions write (on SQLite: `BEGIN IMMEDIATE`)."""
+        return self._write_engine
+
+    @property
     def dialect(self) -> str:
         return self.engine.dialect.name
 

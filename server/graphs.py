@@ -22,7 +22,7 @@ from typing import Any
 import networkx as nx
 from networkx.algorithms.isomorphism import DiGraphMatcher
 
-from client.models import CategoricalDomain, ContinuousDomain, Graph, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Graph, Value
 
 Domain = CategoricalDomain | ContinuousDomain
 # Each edge is two hops once subdivided: 6 iterations see as far as 3 on the graph itself.
@@ -196,11 +196,12 @@ def _check_isomorphic(type_id: str, new_json: str, stored_json: str) -> None:
         )
     stored_space = {n.label: n.domain for n in stored.nodes if n.role == "decision"}
     for node in new.nodes:
-        if node.role == "decision" and not _same_values(node.domain, stored_space.get(node.label)):
+        stored_domain = stored_space.get(node.label)
+        if node.role == "decision" and not _same_values(node.domain, stored_domain):
             raise TypeConflict(
                 f"type {type_id}: decision {node.label!r} has domain "
                 f"{node.domain.model_dump() if node.domain else None}, but the stored type has "
-                f"{stored_space[node.label].model_dump() if stored_space.get(node.label) else None}"
+                f"{stored_domain.model_dump() if stored_domain else None}"
             )
 
 

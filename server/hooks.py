@@ -16,7 +16,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from client.models import SurrogateState
+from contract.models import SurrogateState
 
 log = logging.getLogger("cpkb.server")
 

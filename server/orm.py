@@ -160,7 +160,7 @@ class PendingRow(Base):
 
 
 class BindingRow(Base):
-    """A binding list a planner found for its task (`client.bindings`)."""
+    """A binding list a planner found for its task (`contract.bindings`)."""
 
     __tablename__ = "cp_bindings"
     __table_args__ = (
@@ -175,6 +175,6 @@ class BindingRow(Base):
     run: Mapped[str | None] = mapped_column(String(128))
     rollout: Mapped[int | None] = mapped_column(BigInteger)
     bindings: Mapped[dict[str, Any]] = mapped_column(JSON)
-    # Idempotency key (`client.bindings.BindingIn.key`): the same key again stores nothing.
+    # Idempotency key (`contract.bindings.BindingIn.key`): the same key again stores nothing.
     key: Mapped[str | None] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=utcnow)

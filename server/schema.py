@@ -12,6 +12,6 @@ from server.services.kbs import DEFAULT_KB, ensure_kb
 
 def prepare_database(store: Store) -> None:
     """Migrate to head and create the `default` knowledge base (idempotent, race-safe)."""
-    upgrade(store.engine)
+    upgrade(store.write_engine)
     with store.transaction(write=True) as session:
         ensure_kb(session, DEFAULT_KB)

@@ -147,8 +147,8 @@ def _route_path(scope: Scope) -> str:
     for route in getattr(scope.get("app"), "routes", ()):
         match, _ = route.matches(scope)
         if match is Match.FULL:
-            return getattr(route, "path", scope["path"])
-    return scope["path"]
+            return str(getattr(route, "path", scope["path"]))
+    return str(scope["path"])
 
 
 def _bearer_token(request: Request) -> str | None:

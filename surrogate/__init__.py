@@ -31,8 +31,8 @@ _HOMES = {
         "fit_regression",
         "warm_up",
     ),
+    "surrogate.config": ("OptimizerConfig", "SurrogateConfig"),
     "surrogate.optimize": (
-        "OptimizerConfig",
         "SpaceExhausted",
         "Suggestion",
         "maximize",
@@ -64,6 +64,7 @@ __all__ = [
     "SpaceEncoder",
     "SpaceExhausted",
     "Suggestion",
+    "SurrogateConfig",
     "VGPPredictor",
     "fit_classifier",
     "fit_label_regression",

@@ -9,7 +9,7 @@ that depends on one decision alone, which a few failures spread over the other i
 "the top grasp fails wherever it places". The fit chooses each term's outputscale, so a type
 whose feasibility depends on all its inputs together can turn the terms down.
 
-`SurrogateConfig.additive` (the service's `CPKB_SURROGATE_ADDITIVE`) says which decisions get
+`SurrogateConfig.additive` (the service's `CPKB_SURROGATE__ADDITIVE`) says which decisions get
 a term: `none`, the categorical ones (`choices`: grasps, sides), or every decision
 (`decisions`). A type with one decision gets none: its term would repeat the main kernel.
 """

@@ -175,11 +175,11 @@ class SpaceEncoder:
             start += var.z_width
         by_name = {v.name: v for v in self.vars}
         self.base_dim = start  # the variables' own columns; the separations follow them
-        separations = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
-        self.dim = start + sum(_pair_width(a, b) for a, b in separations)
+        pair_vars = [(by_name[a.name], by_name[b.name]) for a, b in pairs]
+        self.dim = start + sum(_pair_width(a, b) for a, b in pair_vars)
         # Each separation's columns: its variables, and its heading and metric scales if any.
         self._pair_rules = [
-            (a.name, b.name, _shared_heading(a, b), _metric_scales(a, b)) for a, b in separations
+            (a.name, b.name, _shared_heading(a, b), _metric_scales(a, b)) for a, b in pair_vars
         ]
 
     def choice_rows(self) -> tuple[tuple[slice, np.ndarray], ...]:
@@ -254,9 +254,8 @@ class SpaceEncoder:
                 d2 = ((block[:, None, :] - var.table[None, :, :]) ** 2).sum(-1)
                 cols[var.name] = d2.argmin(axis=1)
             else:
-                low = np.asarray(var.domain.low)
-                high = np.asarray(var.domain.high)
-                cols[var.name] = low + var.from_z(block) * (high - low)
+                assert var.low is not None and var.span is not None  # continuous: both set
+                cols[var.name] = var.low + var.from_z(block) * var.span
         return cols
 
     def encode_points(self, points: Sequence[Mapping[str, Value]]) -> np.ndarray:

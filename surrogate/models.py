@@ -193,12 +193,12 @@ def fit_classifier(
     *,
     seed: int = 0,
     warm: Fit | None = None,
-    max_inducing: int = SurrogateConfig.max_inducing,
-    max_points: int = SurrogateConfig.max_fit_points,
+    max_inducing: int = SurrogateConfig().max_inducing,
+    max_points: int = SurrogateConfig().max_fit_points,
     max_iters: int = 100,
     lr: float = 0.1,
     groups: Groups = (),
-    balance: bool = SurrogateConfig.balance_classes,
+    balance: bool = SurrogateConfig().balance_classes,
 ) -> Fit:
     """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible), with an additive
     kernel term over each column group of `groups` (`surrogate.additive.term_groups`), on

@@ -13,8 +13,8 @@ pending point) minus the acquisition's penalty around its pending points
 (`surrogate.acquisition.PendingPoints`), so that concurrent planners are pushed apart. An excluded
 point is never returned.
 
-With `margin > 0` the answer is not the argmax itself but the candidate farthest from the excluded
-and pending points among those within `margin` (a fraction) of the best acquisition value: for
+With `mpf_margin > 0` the answer is not the argmax itself but the candidate farthest from the
+excluded and pending points among those within that fraction of the best acquisition value: for
 MPF, "about as likely feasible as the best, as far from the node's other children as possible".
 A tree search needs its children spread (the quasi-random baseline's Voronoi rule) as well as
 feasible: children piled on one maximum fail together on every constraint the knowledge base
@@ -24,8 +24,10 @@ does not know yet.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pymoo.core.population import Population
@@ -36,38 +38,13 @@ from scipy.stats import qmc
 
 from surrogate.acquisition import Acquisition
 from surrogate.avoid import AvoidSet, spread_of
-from surrogate.config import SurrogateConfig
+from surrogate.config import OptimizerConfig
 from surrogate.domains import CategoricalDomain, Domain, Value
 from surrogate.encoding import Columns, value_column
 
 
 class SpaceExhausted(ValueError):
     """Every point of a finite space is excluded."""
-
-
-@dataclass(frozen=True)
-class OptimizerConfig:
-    """NSGA-II settings. The authors used pop 100 x 100 generations (`authors()`); the default is
-    cut to what `benchmarks/synthetic_cpbo.py` measured to reach the same acquisition values."""
-
-    pop_size: int = SurrogateConfig.pop_size
-    n_gen: int = SurrogateConfig.generations
-    raw_samples: int = SurrogateConfig.raw_samples
-    # > 0: the most spread candidate within this fraction of the best value, or within
-    # `margin_abs` of it (near-equal tiny P(feasible) ties), rather than the argmax itself.
-    margin: float = SurrogateConfig.mpf_margin
-    margin_abs: float = SurrogateConfig.mpf_margin_abs
-    walls: bool = SurrogateConfig.spread_walls  # see `surrogate.avoid.AvoidSet.spread`
-    sbx_eta: float = 15.0
-    sbx_prob: float = 0.9
-    pm_eta: float = 20.0
-    explore: float = 0.02  # bonus per unit of normalised distance to excluded/pending points
-    enumerate_limit: int = 2048
-    eliminate_duplicates: bool = True
-
-    @staticmethod
-    def authors() -> OptimizerConfig:
-        return OptimizerConfig(pop_size=100, n_gen=100, raw_samples=100)
 
 
 @dataclass(frozen=True)
@@ -130,7 +107,14 @@ class _MixedSBX(SBX):
         super().__init__(**kwargs)
         self.categorical = categorical
 
-    def _do(self, problem, X, *args, random_state=None, **kwargs):  # type: ignore[no-untyped-def]
+    def _do(
+        self,
+        problem: Problem,
+        X: np.ndarray,
+        *args: Any,
+        random_state: np.random.Generator,
+        **kwargs: Any,
+    ) -> np.ndarray:
         q = super()._do(problem, X, *args, random_state=random_state, **kwargs)
         if self.categorical.any():
             cat = self.categorical
@@ -145,7 +129,14 @@ class _MixedPM(PM):
         super().__init__(**kwargs)
         self.categorical = categorical
 
-    def _do(self, problem, X, *args, random_state=None, **kwargs):  # type: ignore[no-untyped-def]
+    def _do(
+        self,
+        problem: Problem,
+        X: np.ndarray,
+        *args: Any,
+        random_state: np.random.Generator,
+        **kwargs: Any,
+    ) -> np.ndarray:
         cat = self.categorical
         out = super()._do(problem, X, *args, random_state=random_state, **kwargs)
         if cat.any():
@@ -276,7 +267,9 @@ def maximize_batch(
         value = float(np.asarray(acquisition(fixed_cols))[0])
         return [Suggestion(dict(fixed_in_space), value)]
     genome = _Genome(free)
-    avoid = AvoidSet(free, fixed_in_space, exclude, acquisition.pending.points, walls=config.walls)
+    avoid = AvoidSet(
+        free, fixed_in_space, exclude, acquisition.pending.points, walls=config.spread_walls
+    )
     scorer = _Scorer(acquisition, genome, avoid, config, fixed_cols)
 
     genes, n_hinted = _candidates(genome, free, scorer, config, seed, hints)
@@ -305,7 +298,7 @@ def maximize_batch(
         spread = spread_of(nearest)
         score = scorer.score(raw, spread, penalty)
         prefer = hinted if not found else None
-        best = _select(ok, score, raw, spread, config.margin, config.margin_abs, prefer)
+        best = _select(ok, score, raw, spread, config.mpf_margin, config.mpf_margin_abs, prefer)
         x = {**avoid.encoder.points(genome.columns(genes[best : best + 1]))[0], **fixed_in_space}
         found.append(Suggestion({k: x[k] for k in space}, float(raw[best])))
     return found
@@ -338,9 +331,8 @@ def _select(
 
 
 def _finite_size(free: Mapping[str, Domain]) -> int | None:
-    if not all(isinstance(d, CategoricalDomain) for d in free.values()):
-        return None
-    return int(np.prod([len(d.choices) for d in free.values()]))  # type: ignore[union-attr]
+    sizes = [len(d.choices) for d in free.values() if isinstance(d, CategoricalDomain)]
+    return math.prod(sizes) if len(sizes) == len(free) else None
 
 
 def _candidates(
@@ -362,7 +354,7 @@ def _candidates(
     if hints:
         best = raw[int(np.argmax(scorer(raw)))]
         hinted = np.vstack([genome.genes(hint, best)[None, :] for hint in hints])
-    if config.n_gen <= 0:
+    if config.generations <= 0:
         return np.vstack([raw, hinted]), len(hinted)
     pool = np.vstack([raw, hinted])
     start = pool[np.argsort(-scorer(pool), kind="stable")[: config.pop_size]]
@@ -386,7 +378,7 @@ def space_filling_genes(n_genes: int, n: int, seed: int) -> np.ndarray:
 def _nsga2(
     genome: _Genome, scorer: _Scorer, config: OptimizerConfig, seed: int, start: np.ndarray
 ) -> np.ndarray:
-    """Every genome NSGA-II evaluates `(n, n_genes)` in `config.n_gen - 1` generations from
+    """Every genome NSGA-II evaluates `(n, n_genes)` in `config.generations - 1` generations from
     `start` `(pop_size, n_genes)`.
 
     With one objective, NSGA-II's rank-and-crowding comparison is a comparison of scores, so the
@@ -401,7 +393,7 @@ def _nsga2(
     pop, score = start, scorer(start)
     evaluated = [start]
     n_matings = -(-config.pop_size // crossover.n_offsprings)
-    for _ in range(config.n_gen - 1):
+    for _ in range(config.generations - 1):
         parents = _binary_tournaments(score, n_matings * crossover.n_parents, rng)
         offspring = crossover.do(
             problem,

@@ -43,7 +43,9 @@ class PendingEntry:
 Binds = Sequence[tuple[str, Mapping[str, str]]]
 
 
-def _entry(x: Mapping[str, Value], binds: Binds, expires: float, owner: str | None = None):
+def _entry(
+    x: Mapping[str, Value], binds: Binds, expires: float, owner: str | None = None
+) -> PendingEntry:
     return PendingEntry(
         dict(x), tuple((t, tuple(sorted(b.items()))) for t, b in binds), expires, owner
     )
@@ -136,7 +138,9 @@ class PendingBook:
         with self._lock:
             return list(self._live(kb))
 
-    def put(self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]):
+    def put(
+        self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]
+    ) -> None:
         """What `owner` (a planner's run) has pending now, (x, binds) each: it replaces what the
         owner put before (an empty list withdraws it all)."""
         expires = self.clock() + self.ttl_s

@@ -19,7 +19,6 @@ from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from surrogate.additive import AdditiveTerm, additive_cov, terms_variance
-from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52, squared_distances
 
 JITTER = 1e-6
@@ -62,8 +61,8 @@ class PriorPredictor:
 
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
-    weight: float = SurrogateConfig.prior_weight
-    lengthscale: float = SurrogateConfig.prior_lengthscale
+    weight: float = 0.45  # how far the prior moves P(feasible) away from 0.5 at a point
+    lengthscale: float = 0.1  # its reach in the unit cube, per sqrt(D)
     center: float = 0.5
     strength: float = 0.0
     # Per categorical variable: its columns in Z and its distinct choice rows `(k, width)`.
@@ -86,12 +85,16 @@ class PriorPredictor:
     ) -> PriorPredictor:
         """This prior in the counting form of `strength` pseudo-points, with `feasible` `(a, D)`
         and `infeasible` `(b, D)` more points joined to its own."""
-        more = {
-            name: np.vstack([getattr(self, name), extra])
-            for name, extra in (("feasible", feasible), ("infeasible", infeasible))
-            if extra is not None and len(extra)
-        }
-        return dataclasses.replace(self, strength=strength, **more)
+
+        def joined(own: np.ndarray, extra: np.ndarray | None) -> np.ndarray:
+            return own if extra is None or not len(extra) else np.vstack([own, extra])
+
+        return dataclasses.replace(
+            self,
+            strength=strength,
+            feasible=joined(self.feasible, feasible),
+            infeasible=joined(self.infeasible, infeasible),
+        )
 
     def by_choice(self, choices: tuple[tuple[slice, np.ndarray], ...]) -> PriorPredictor:
         """This prior with its centre set per categorical choice (see the class): a grasp
@@ -199,8 +202,8 @@ class RecentPoints:
     base: FeasibilityPredictor
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
-    weight: float = SurrogateConfig.recent_weight
-    lengthscale: float = SurrogateConfig.recent_lengthscale
+    weight: float = 0.5  # how far a point moves P(feasible) toward its label, at the point
+    lengthscale: float = 0.05  # its reach per sqrt(D): half the prior's, since a fit will follow
 
     def proba(self, z: np.ndarray) -> np.ndarray:
         p = self.base.proba(z)

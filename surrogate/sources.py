@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from surrogate.config import SurrogateConfig
 from surrogate.domains import Domain, Value
 from surrogate.encoding import SpaceEncoder, encoder_for
 from surrogate.models import MIN_POINTS, Fit, fit_classifier
@@ -70,8 +71,8 @@ class InMemoryModels:
     """Types and their points in this process, fitted as the service fits them (seed 0, warm
     from the previous fit) whenever a model is asked for after points were added."""
 
-    def __init__(self, *, max_inducing: int | None = None) -> None:
-        self.max_inducing = max_inducing  # None: `fit_classifier`'s default, as the service's
+    def __init__(self, *, max_inducing: int = SurrogateConfig().max_inducing) -> None:
+        self.max_inducing = max_inducing
         self._types: dict[str, _Type] = {}
         self.fits = 0
 
@@ -105,8 +106,9 @@ class InMemoryModels:
         if not needs_model(entry.y):
             entry.base, entry.seen = prior(entry.z, entry.y), ()
         else:
-            limit = {} if self.max_inducing is None else {"max_inducing": self.max_inducing}
-            fit = fit_classifier(entry.z, entry.y, seed=0, warm=entry.fit, **limit)
+            fit = fit_classifier(
+                entry.z, entry.y, seed=0, warm=entry.fit, max_inducing=self.max_inducing
+            )
             self.fits += 1
             entry.fit, entry.base = fit, fit.predictor
             entry.seen = seen_choices(entry.encoder, entry.z)

@@ -20,9 +20,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints
+from surrogate.config import OptimizerConfig
 from surrogate.domains import Domain, Value, domain_to_json, space_from_json
 from surrogate.encoding import EncodingError, encoder_for, same_domain, value_column
-from surrogate.optimize import OptimizerConfig, maximize_batch, space_filling
+from surrogate.optimize import maximize_batch, space_filling
 from surrogate.pending import Pending
 from surrogate.predictors import FeasibilityPredictor
 
@@ -187,7 +188,9 @@ def _check_lookahead(request: SuggestRequest) -> None:
         raise InvalidRequest("lookahead: leaves no variable of space to suggest")
 
 
-def _check_binding(i: int, constraint: Constraint, model: TypeModel, request: SuggestRequest):
+def _check_binding(
+    i: int, constraint: Constraint, model: TypeModel, request: SuggestRequest
+) -> None:
     """Every decision of the type bound, to a variable of the space (of the same domain) or to a
     valid fixed value; no label the type does not have."""
     bind, type_id = constraint.bind, constraint.type_id

@@ -19,7 +19,7 @@ from cpkb.bench.kbs import ServiceKbs
 from cpkb.bench.plots import write_plots
 from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
-from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
+from cpkb.bench.runner import BenchOutcome, KbService, RunFn, run_bench
 from cpkb.bench.scenarios import (
     TRANSFER_METHODS,
     expand,
@@ -246,7 +246,7 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
     scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
     spare = settings.service_cores == "spare"
-    service = (
+    service: contextlib.AbstractContextManager[KbService | None] = (
         contextlib.nullcontext(None)
         if everything_done  # no service to start just to skip every run
         else knowledge_service(settings.kb_url, settings.token, settings.workers if spare else 0)
@@ -292,7 +292,7 @@ def run_command(settings: BenchSettings, run_fn: RunFn | None = None) -> int:
         return 0
     check_request(settings)
     if run_fn is None:
-        options = {"suggest_in": settings.suggest_in} | (
+        options: dict[str, Any] = {"suggest_in": settings.suggest_in} | (
             {"token": settings.token} if settings.token is not None else {}
         )
         run_fn = functools.partial(plan_run, **options)

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from client import CpkbClient
+    from contract.models import TypeDetail
 
 FIT_WAIT_S = 120.0
 SETTLED = frozenset({"ready", "prior", "error"})
@@ -16,7 +21,7 @@ class ServiceKbs:
     url: str
     token: str | None = None
 
-    def _client(self):  # the client is imported lazily: `cpkb --help` stays fast
+    def _client(self) -> CpkbClient:  # imported lazily: `cpkb --help` stays fast
         from client import CpkbClient
 
         return CpkbClient(self.url, token=self.token)
@@ -55,6 +60,6 @@ class ServiceKbs:
         return time.perf_counter() - started
 
 
-def _settled(detail) -> bool:  # a TypeDetail; the client module is imported lazily
+def _settled(detail: TypeDetail) -> bool:
     state = detail.surrogate
     return state is not None and state.status in SETTLED and state.n_fitted == detail.n_points

@@ -20,6 +20,7 @@ from matplotlib import ticker
 from matplotlib.axes import Axes
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.typing import RcKeyType
 
 from cpkb.bench.scenarios import task_kinds
 from cpkb.bench.stats import BOOTSTRAP_RESAMPLES, ordered, rollouts_metric, time_metric
@@ -28,7 +29,7 @@ from cpkb.bench.stats import BOOTSTRAP_RESAMPLES, ordered, rollouts_metric, time
 PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
 PNG_DPI = 200
 FORMATS = ("png", "svg", "pdf")
-STYLE = {
+STYLE: dict[RcKeyType, Any] = {
     "font.family": "DejaVu Sans",  # shipped with matplotlib: the same glyphs on every machine
     "font.size": 9,
     "axes.titlesize": 10,
@@ -71,12 +72,14 @@ def _log_axis(ax: Axes) -> None:
     without decoding 10^x, and a narrow range still gets several labels."""
     ax.set_yscale("log")
     ax.yaxis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-    ax.yaxis.set_minor_locator(ticker.LogLocator(base=10, subs=np.arange(1, 10), numticks=100))
+    ax.yaxis.set_minor_locator(ticker.LogLocator(base=10, subs=tuple(range(1, 10)), numticks=100))
     ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda y, _: f"{y:g}"))
     ax.yaxis.set_minor_formatter(ticker.NullFormatter())
 
 
-def _interval(ax: Axes, x: float, centre: float, ci: tuple[float, float] | None, **style) -> None:
+def _interval(
+    ax: Axes, x: float, centre: float, ci: tuple[float, float] | None, **style: Any
+) -> None:
     low, high = ci if ci is not None else (centre, centre)
     ax.errorbar(
         [x],
@@ -91,7 +94,9 @@ def _interval(ax: Axes, x: float, centre: float, ci: tuple[float, float] | None,
     )
 
 
-def _panel(ax: Axes, cell: Mapping[str, list[float]], names: Sequence[str], colours) -> None:
+def _panel(
+    ax: Axes, cell: Mapping[str, list[float]], names: Sequence[str], colours: Mapping[str, str]
+) -> None:
     series = [cell[m] for m in names]
     parts = ax.boxplot(
         series,

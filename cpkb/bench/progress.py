@@ -11,6 +11,7 @@ from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
     Progress,
+    TaskID,
     TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
@@ -37,7 +38,7 @@ class RichProgress:
     def __init__(self, console: Console | None = None) -> None:
         self._console = console or Console()
         self._progress: Progress | None = None
-        self._task = None
+        self._task: TaskID | None = None
         self._solved = 0
         self._errors = 0
         self._room = STATUS
@@ -73,7 +74,7 @@ class RichProgress:
         status = f"solved {self._solved}, errors {self._errors}, last {last}"
         if len(status) > self._room:
             status = status[: self._room - 1] + "…"
-        assert self._progress is not None
+        assert self._progress is not None and self._task is not None
         self._progress.update(self._task, advance=1, status=status)
 
     def stop(self) -> None:

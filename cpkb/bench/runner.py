@@ -69,7 +69,8 @@ class Group:
 class KbService(Protocol):
     """Where scenario knowledge bases live; picklable, since workers create and delete them."""
 
-    url: str
+    @property
+    def url(self) -> str: ...
 
     def create(self, name: str) -> None: ...
 
@@ -253,8 +254,8 @@ def _grouped(
                 block[s.key] = ("", method, i // concurrent)
     else:
         cells = itertools.groupby(sorted(scenarios), key=lambda s: (s.task, s.method))
-        for (task, method), members in cells:
-            for i, s in enumerate(members):
+        for (task, method), cell in cells:
+            for i, s in enumerate(cell):
                 block[s.key] = (task, method, i // concurrent)
     groups: dict[tuple[str, str, int], list[Scenario]] = {}
     for s in pending:
@@ -431,8 +432,9 @@ def run_bench(
     left = {g.kb_name: g.size for g in open_groups.values()}
     members_in: dict[str, list[Mapping[str, Any]]] = {name: [] for name in left}
     try:
-        for name in left if kb_service is not None else ():
-            kb_service.create(name)
+        if kb_service is not None:
+            for name in left:
+                kb_service.create(name)
         for _ in range(len(jobs)):
             ok, record = _next_result(pool, deadline)
             done = open_groups.get((record["task"], record["method"], int(record["seed"])))

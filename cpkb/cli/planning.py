@@ -92,11 +92,15 @@ def _run(args: argparse.Namespace, **kwargs: Any) -> Any:
     import httpx
 
     from client import CpkbError
-    from cpkb.embedded import EmbeddedServiceError
+    from cpkb.embedded import EmbeddedServiceError, service_url
     from planner.run import run_plan
+    from planner.search import samplers
 
     try:
-        return run_plan(**kwargs)
+        if kwargs["kb_url"] is not None or not samplers.uses_knowledge(kwargs["method"]):
+            return run_plan(**kwargs)
+        with service_url(None) as url:
+            return run_plan(**{**kwargs, "kb_url": url})
     except (CpkbError, EmbeddedServiceError, httpx.HTTPError) as exc:
         raise explained(exc, args.kb_url or "the embedded service", kwargs["token"]) from None
     except (ValueError, KeyError, FileNotFoundError) as exc:
@@ -190,14 +194,17 @@ def _summary(result: Any) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
+    from cpkb.embedded import service_url
     from planner.demo import run_demo
 
     if args.seeds < 1 or args.predecessor_rollouts < 1:
         raise CliError("--seeds and --predecessor-rollouts must be at least 1")
-    return run_demo(
-        seeds=args.seeds,
-        predecessor_rollouts=args.predecessor_rollouts,
-        db=args.db,
-        kb_url=args.kb_url,
-        prefix="analytic:" if args.analytic else "",
-    )
+    with service_url(args.kb_url, args.db) as url:
+        return run_demo(
+            url,
+            seeds=args.seeds,
+            predecessor_rollouts=args.predecessor_rollouts,
+            prefix="analytic:" if args.analytic else "",
+            embedded=args.kb_url is None,
+            db=args.db,
+        )

@@ -79,7 +79,7 @@ def checked_kb_name(name: str) -> str:
     """`name` if the service would take it as a knowledge base's name; else a usage error."""
     from pydantic import ValidationError
 
-    from client.models import KnowledgeBaseIn
+    from contract.models import KnowledgeBaseIn
 
     try:
         KnowledgeBaseIn(name=name)

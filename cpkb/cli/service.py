@@ -187,8 +187,8 @@ def _serve(args: argparse.Namespace) -> int:
         store = _open_store(settings.database_url)
         _prepare(store, settings.database_url)
         store.dispose()
-        if settings.surrogate_nice > 0 and hasattr(os, "nice"):
-            os.nice(settings.surrogate_nice)  # the fit worker, started later, inherits it
+        if settings.surrogate.nice > 0 and hasattr(os, "nice"):
+            os.nice(settings.surrogate.nice)  # the fit worker, started later, inherits it
 
         import uvicorn
 
@@ -361,7 +361,7 @@ def _types(args: argparse.Namespace) -> int:
 def _bindings(args: argparse.Namespace) -> int:
     from rich.table import Table
 
-    from client.bindings import MAX_BINDINGS_PAGE
+    from contract.bindings import MAX_BINDINGS_PAGE
 
     limit = MAX_BINDINGS_PAGE if args.limit is None else args.limit
     if not 1 <= limit <= MAX_BINDINGS_PAGE:

@@ -53,7 +53,7 @@ import itertools
 import math
 from dataclasses import dataclass, field
 
-from client.models import CategoricalDomain, ContinuousDomain, Domain, Edge, Graph, Node
+from contract.models import CategoricalDomain, ContinuousDomain, Domain, Edge, Graph, Node
 from planner.skeleton import DecisionVar, OperatorCall, Skeleton
 from planner.world import CheckResult, WorldGeometry
 

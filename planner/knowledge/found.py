@@ -16,8 +16,8 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
-from client.bindings import BindingIn, BindingsPage
-from client.models import MAX_LABEL, Value
+from contract.bindings import BindingIn, BindingsPage
+from contract.models import MAX_LABEL, Value
 from planner.knowledge.polls import PollSchedule
 from planner.skeleton import Skeleton
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from client.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
+from contract.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
 from planner.knowledge.polls import PollSchedule
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]

@@ -34,14 +34,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from client import models as wire
-from client.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
+from contract import models as wire
+from contract.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
 from planner.config import KnowledgeConfig
 from surrogate import snapshot
-from surrogate.config import SurrogateConfig
+from surrogate.config import OptimizerConfig, SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
 from surrogate.encoding import encoder_for
-from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.predictors import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
 from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
@@ -78,7 +77,7 @@ def in_request_terms(shared: list[Shared], constraints: list[Constraint]) -> lis
 def fetch_from(
     source: ModelSource,
     optimizer: OptimizerConfig,
-    pending_ttl_s: float = SurrogateConfig.pending_ttl_s,
+    pending_ttl_s: float = SurrogateConfig().pending_ttl_s,
 ) -> FetchFn:
     """A fetch answered in this process from `source` (e.g. `surrogate.sources.InMemoryModels`)
     through the same snapshot form the service sends: the planner's models without a server."""
@@ -90,7 +89,7 @@ def fetch_from(
             if known.get(type_id) != model.version:
                 shots.append(wire.ModelSnapshot(**snapshot.model_to_json(type_id, model)))
         return ModelsOut(
-            models=shots, optimizer=dataclasses.asdict(optimizer), pending_ttl_s=pending_ttl_s
+            models=shots, optimizer=optimizer.model_dump(), pending_ttl_s=pending_ttl_s
         )
 
     return fetch
@@ -340,10 +339,10 @@ class LocalSurrogates:
         self.model_evidence_prior = model_evidence_prior
         self._models: dict[str, _Model] = {}
         self.spread_walls = spread_walls
-        self._config = OptimizerConfig(walls=spread_walls)
+        self._config = OptimizerConfig(spread_walls=spread_walls)
         self._settings_known = False  # `_config` is the service's (a fetch has been answered)
         # The service's pending lifetime replaces the default with the first fetch.
-        self._pending = PendingBook(ttl_s=SurrogateConfig.pending_ttl_s, clock=pending_clock)
+        self._pending = PendingBook(ttl_s=SurrogateConfig().pending_ttl_s, clock=pending_clock)
         self.fetches = 0
         self.fetch_s = 0.0  # spent waiting for fetches (not the background ones)
         self._executor = (
@@ -527,9 +526,8 @@ class LocalSurrogates:
         """Take in a fetch's answer; `stored`: the last poster batch the service had taken in
         when it was asked, `learned`: the newest other planner's point taken in then (later
         points stay weighed in on top of the new snapshot)."""
-        names = {f.name for f in dataclasses.fields(OptimizerConfig)}
-        served = {k: v for k, v in answer.optimizer.items() if k in names}
-        self._config = OptimizerConfig(**{**served, "walls": self.spread_walls})
+        served = {k: v for k, v in answer.optimizer.items() if k in OptimizerConfig.model_fields}
+        self._config = OptimizerConfig(**{**served, "spread_walls": self.spread_walls})
         self._settings_known = True
         self._pending.ttl_s = answer.pending_ttl_s
         for shot in answer.models:

@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
-from client.models import PointIn
+from contract.models import PointIn
 
 log = logging.getLogger(__name__)
 

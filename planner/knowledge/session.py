@@ -23,7 +23,7 @@ from functools import lru_cache
 from typing import Any, Protocol
 
 from client.errors import BadRequest
-from client.models import (
+from contract.models import (
     MAX_PENDING_REPORT,
     MAX_WATCHED_TYPES,
     Constraint,
@@ -361,7 +361,11 @@ class KnowledgeSession:
         transferred = result.exists and result.n_points > 0
         stored_with = 0 if result.exists else self.poster.submitted + 1
         if stored_with and self.local is not None:
-            space = {n.label: n.domain for n in fg.graph.nodes if n.role == "decision"}
+            space = {
+                n.label: n.domain
+                for n in fg.graph.nodes
+                if n.role == "decision" and n.domain is not None  # a decision's is never None
+            }
             if self.local.adopt(result.type_id, space, stored_with):
                 stored_with = 0  # no need to wait for the service to store it
         activation = Activation(result.type_id, fg, transferred, result.n_points, stored_with)

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import cast
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
 from planner.world import CheckResult, Culprit, TransitionOutcome, WorldGeometry
 
@@ -97,7 +98,7 @@ MOTION_CLEARANCE_Y = 0.4
 def _shelf_reach(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
     """IK on the shelf: reachable inside a disc in (x, y) (~20% of the square), else the arm
     hits the shelf."""
-    x, y, _ = bindings["#pose12"]
+    x, y, _ = cast(list[float], bindings["#pose12"])
     inside = (x - SHELF_CENTRE[0]) ** 2 + (y - SHELF_CENTRE[1]) ** 2 < SHELF_RADIUS**2
     return None if inside else ("shelf",)
 
@@ -105,7 +106,8 @@ def _shelf_reach(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
 def _shelf_motion(bindings: Mapping[str, Value]) -> tuple[str, ...] | None:
     """The motion to a reachable placement passes only beyond obstacle3 (y >= 0.4): the
     feasible placements are a segment of the disc, ~7% of the square."""
-    return None if bindings["#pose12"][1] >= MOTION_CLEARANCE_Y else ("obstacle3",)
+    y = cast(list[float], bindings["#pose12"])[1]
+    return None if y >= MOTION_CLEARANCE_Y else ("obstacle3",)
 
 
 def shelf_reachable(pose: list[float]) -> bool:

@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import SearchConfig
 from planner.search.samplers.base import Proposal, SampleContext, Sampler
 from planner.search.tree import (
@@ -336,10 +336,11 @@ class PWUCT:
             started = time.perf_counter()
             proposal = chosen if chosen is not None else self.sampler.propose(ctx)
             self.sample_s += time.perf_counter() - started
-            value = proposal
             if isinstance(proposal, Proposal):
                 value = proposal.value
                 note_proposal(node, proposal.p_feasible, self.config)
+            else:
+                value = proposal
             if node.n_choices is not None and value in ctx.siblings:
                 raise RuntimeError(f"sampler {self.sampler.name} proposed a tried choice {value!r}")
         bindings = {**node.path, node.var.var: value}

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from client.models import CategoricalDomain, Value
+from contract.models import CategoricalDomain, Value
 from planner.config import SearchConfig
 from planner.skeleton import DecisionVar, Skeleton
 from planner.world import TransitionOutcome

@@ -20,12 +20,12 @@ def yaw_quat(yaw: float) -> Quat:
 
 def compose(a: Pose, b: Pose) -> Pose:
     pos, orn = p.multiplyTransforms(a[0], a[1], b[0], b[1])
-    return tuple(pos), tuple(orn)  # type: ignore[return-value]
+    return tuple(pos), tuple(orn)
 
 
 def invert(a: Pose) -> Pose:
     pos, orn = p.invertTransform(a[0], a[1])
-    return tuple(pos), tuple(orn)  # type: ignore[return-value]
+    return tuple(pos), tuple(orn)
 
 
 def rotation(q: Quat) -> np.ndarray:

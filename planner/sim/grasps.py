@@ -121,7 +121,7 @@ def tcp_target(grasp: Grasp, body_pose: Pose, back_off: float = 0.0) -> Pose:
     direction = rotation(body_pose[1]) @ np.asarray(grasp.approach_in_body)
     moved = np.asarray(pos) - back_off * direction + np.array([0.0, 0.0, APPROACH_LIFT])
     moved = tuple(float(v) for v in moved)
-    return moved, orn  # type: ignore[return-value]
+    return moved, orn
 
 
 def carried_pose(scene: Scene, grasp: Grasp) -> Pose:

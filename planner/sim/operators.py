@@ -9,10 +9,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.config import SimConfig
 from planner.sim.geometry import Pose, derived_seed, quat_from_axes, rotation
 from planner.sim.grasps import (
@@ -219,7 +220,7 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         candidates = [grasp] if direction == "top" else [grasp, rolled(grasp)]
     check = ex.checker()
     rng = np.random.default_rng(ex.draw_seed(call, body_pose, candidates[0].direction))
-    options = dict(
+    options: dict[str, Any] = dict(
         restarts=s.ik_restarts,
         iterations=s.ik_iterations,
         tolerance=s.ik_tolerance,

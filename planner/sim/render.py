@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 
-from client.models import Value
+from contract.models import Value
 from planner.sim.geometry import yaw_quat
 from planner.sim.grasps import carried_pose
 from planner.sim.motion import interpolate

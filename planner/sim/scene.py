@@ -75,19 +75,19 @@ class Scene:
             self._add_static(body)
         self.static_names = tuple(b.name for b in statics)
         self.sizes: dict[str, tuple[float, float, float]] = {}
-        for body in task.bodies.values():
-            half = [s / 2 for s in body.size]
+        for movable in task.bodies.values():
+            half = [s / 2 for s in movable.size]
             shape = p.createCollisionShape(
                 p.GEOM_BOX, halfExtents=half, physicsClientId=self.client
             )
             visual = p.createVisualShape(
-                p.GEOM_BOX, halfExtents=half, rgbaColor=body.color, physicsClientId=self.client
+                p.GEOM_BOX, halfExtents=half, rgbaColor=movable.color, physicsClientId=self.client
             )
             # Non-zero mass so PyBullet reports its contacts with static bodies; never stepped.
             uid = p.createMultiBody(0.2, shape, visual, physicsClientId=self.client)
-            self._register(body.name, uid)
-            self.sizes[body.name] = body.size
-            self.set_pose(body.name, self.named_pose(body.pose, body.name))
+            self._register(movable.name, uid)
+            self.sizes[movable.name] = movable.size
+            self.set_pose(movable.name, self.named_pose(movable.pose, movable.name))
         self.movable_names = tuple(task.bodies)
         # Nominal IK solutions by kind of hand pose, filled on first use (planner.sim.operators).
         self.nominal_ik: dict[tuple[str, float], tuple[float, ...]] = {}
@@ -172,7 +172,7 @@ class Scene:
 
     def pose(self, name: str) -> Pose:
         pos, orn = p.getBasePositionAndOrientation(self.ids[name], physicsClientId=self.client)
-        return tuple(pos), tuple(orn)  # type: ignore[return-value]
+        return tuple(pos), tuple(orn)
 
     def set_pose(self, name: str, pose: Pose) -> None:
         p.resetBasePositionAndOrientation(
@@ -205,7 +205,7 @@ class Scene:
         state = p.getLinkState(
             self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
         )
-        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+        return tuple(state[4]), tuple(state[5])
 
     def joint_range(self, index: int) -> tuple[float, float]:
         return self.joint_low[index], self.joint_high[index]

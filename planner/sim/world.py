@@ -6,7 +6,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
-from client.models import Value
+from contract.models import CategoricalDomain, Value
 from planner.config import SimConfig
 from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp
@@ -64,8 +64,9 @@ class PyBulletWorld:
         )
         self.geometry = WorldGeometry(
             body_sizes=tuple(
-                (name, tuple(float(v) for v in self.scene.sizes[name][:3]))
+                (name, (float(sx), float(sy), float(sz)))
                 for name in self.scene.movable_names
+                for sx, sy, sz in [self.scene.sizes[name]]
             ),
             placement_extents=tuple(
                 (var, self.scene.placement_extents(body, region))
@@ -135,8 +136,9 @@ class PyBulletWorld:
             if d.var not in bindings:
                 raise KeyError(f"{self.name}: transition {index} needs a binding for {d.var}")
             value = bindings[d.var]
-            if d.kind == "#dir" and value not in d.domain.choices:  # type: ignore[union-attr]
-                raise ValueError(f"{d.var} must be one of {d.domain.choices}, got {value!r}")
+            choices = d.domain.choices if isinstance(d.domain, CategoricalDomain) else None
+            if d.kind == "#dir" and choices is not None and value not in choices:
+                raise ValueError(f"{d.var} must be one of {choices}, got {value!r}")
             if d.kind == "#pose" and (not isinstance(value, list | tuple) or len(value) != 3):
                 raise ValueError(f"{d.var} must be 3 numbers in [0, 1], got {value!r}")
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
 from planner.tasks.loader import GRASP_DIRECTIONS, data_dir, load_task_file, load_workspace
 from planner.tasks.schema import Task, TaskError

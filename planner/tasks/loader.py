@@ -109,7 +109,7 @@ class _Reader:
         rgba = self.vector(value, 4, where)
         if not all(0.0 <= c <= 1.0 for c in rgba):
             raise self.fail(where, "colour components must be within [0, 1]")
-        return rgba  # type: ignore[return-value]
+        return rgba
 
 
 def _read_yaml(path: Path) -> Any:
@@ -446,14 +446,13 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
     settings_raw = r.mapping(data.get("settings") or {}, "settings")
     defaults = PlannerSettings()
     r.only(settings_raw, set(defaults.__dataclass_fields__), "settings")
-    settings = PlannerSettings(
-        **{
-            k: (int if isinstance(getattr(defaults, k), int) else float)(
-                r.number(v, f"settings.{k}", positive=True)
-            )
-            for k, v in settings_raw.items()
-        }
-    )
+    values: dict[str, Any] = {
+        k: (int if isinstance(getattr(defaults, k), int) else float)(
+            r.number(v, f"settings.{k}", positive=True)
+        )
+        for k, v in settings_raw.items()
+    }
+    settings = PlannerSettings(**values)
     predecessors = _predecessors(r, data.get("predecessors"), path, _visiting)
     return Task(
         name=r.name(data.get("task", path.stem), "task"),

@@ -6,8 +6,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, status
 
-from client.bindings import MAX_BINDINGS_PAGE, BindingIn, BindingOut, BindingsPage
-from client.models import MAX_LABEL, MAX_SEED
+from contract.bindings import MAX_BINDINGS_PAGE, BindingIn, BindingOut, BindingsPage
+from contract.models import MAX_LABEL, MAX_SEED
 from server.api.deps import StoreDep
 from server.api.responses import BODY, IN_KB, INVALID
 from server.services import bindings

@@ -11,7 +11,7 @@ from __future__ import annotations
 from anyio import to_thread
 from fastapi import APIRouter, Request
 
-from client.models import Health
+from contract.models import Health
 from server import __version__
 from server.api.responses import errors
 from server.db import Store

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
 
-from client.models import KnowledgeBase, KnowledgeBaseIn
+from contract.models import KnowledgeBase, KnowledgeBaseIn
 from server.api.deps import HooksDep, StoreDep
 from server.api.responses import BODY, COMMON, errors
 from server.services import kbs

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, status
 from fastapi.responses import StreamingResponse
 
-from client.models import (
+from contract.models import (
     PointsIn,
     PointsOut,
     PointsPage,

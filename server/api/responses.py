@@ -60,7 +60,7 @@ ERRORS: dict[int, tuple[str, str]] = {
         "fewer points per request",
     ),
     503: (
-        "The database is busy or unreachable, or surrogates are off (CPKB_SURROGATE_ENABLED): "
+        "The database is busy or unreachable, or surrogates are off (CPKB_SURROGATE__ENABLED): "
         "retry after Retry-After seconds.",
         "database busy or unreachable, retry: database is locked",
     ),

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request
 
-from client.models import (
+from contract.models import (
     ModelsIn,
     ModelsOut,
     PendingIn,
@@ -28,7 +28,7 @@ router = APIRouter(prefix="/v1/kbs/{kb}", tags=["surrogates"], responses=IN_KB)
 def _engine(request: Request) -> SurrogateEngine:
     engine = request.app.state.surrogates
     if engine is None:
-        raise Unavailable("surrogates are disabled in this service (CPKB_SURROGATE_ENABLED=false)")
+        raise Unavailable("surrogates are disabled in this service (CPKB_SURROGATE__ENABLED=false)")
     return engine
 
 

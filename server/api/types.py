@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
-from client.models import MatchIn, MatchResult, TypeDetail, TypeSummary
+from contract.models import MatchIn, MatchResult, TypeDetail, TypeSummary
 from server.api.deps import HooksDep, SettingsDep, StoreDep, in_heavy_lane
 from server.api.responses import BODY, IN_KB, INVALID, errors
 from server.services import types

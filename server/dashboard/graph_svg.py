@@ -18,7 +18,7 @@ from html import escape
 import graphviz
 import networkx as nx
 
-from client.models import CategoricalDomain, Graph, Node
+from contract.models import CategoricalDomain, Graph, Node
 
 ROLE_COLOURS = {
     "decision": "#2563eb",

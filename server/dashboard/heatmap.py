@@ -24,7 +24,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 
 Value = str | list[float]
 Predict = Callable[[list[dict[str, Value]]], list[float]]
@@ -108,10 +108,7 @@ def choose_slice(
             return Slice({lab: list(x[lab]) for lab in mids}, "the latest infeasible point")  # type: ignore[arg-type]
     if observed and mids:
         values = {
-            lab: [
-                statistics.median(float(x[lab][i]) for x, _ in observed)  # type: ignore[index]
-                for i in range(len(mid))
-            ]
+            lab: [statistics.median(float(x[lab][i]) for x, _ in observed) for i in range(len(mid))]
             for lab, mid in mids.items()
         }
         return Slice(values, "the data's median")

@@ -15,7 +15,7 @@ from collections import Counter
 from collections.abc import Sequence
 from html import escape
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from server.dashboard.heatmap import FONT, Dim, Predict, Slice, Value, continuous_dims
 
 _W = 230.0
@@ -176,8 +176,8 @@ def _choice_panel(
 ) -> str:
     total: Counter[str] = Counter()
     good: Counter[str] = Counter()
-    for x, feasible in observed:
-        choice = x.get(label)
+    for point, feasible in observed:
+        choice = point.get(label)
         if isinstance(choice, str):
             total[choice] += 1
             good[choice] += int(feasible)

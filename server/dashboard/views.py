@@ -13,7 +13,7 @@ from datetime import UTC, datetime
 from typing import Any
 from urllib.parse import quote, urlencode
 
-from client.models import SurrogateState, TypeDetail, TypeSummary
+from contract.models import SurrogateState, TypeDetail, TypeSummary
 from server.dashboard.heatmap import Dim, continuous_dims
 from server.db import Store
 from server.hooks import ServiceHooks

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, cast
 
 from sqlalchemy import func, select
 
@@ -91,7 +91,7 @@ def recent_workers(store: Store, kb: str | None = None, *, limit: int = 20) -> l
         if kb is not None:
             query = query.where(PointRow.kb_id == kb_id(session, kb))
         return [
-            WorkerActivity(kb_name, worker, int(count), _utc(last_seen))
+            WorkerActivity(kb_name, cast(str, worker), int(count), _utc(last_seen))
             for kb_name, worker, count, last_seen in session.execute(query)
         ]
 

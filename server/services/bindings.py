@@ -8,7 +8,7 @@ import logging
 from pydantic import ValidationError
 from sqlalchemy import func, or_, select
 
-from client.bindings import BindingIn, BindingOut, BindingsPage
+from contract.bindings import BindingIn, BindingOut, BindingsPage
 from server.db import Store
 from server.errors import Conflict
 from server.orm import BindingRow, utcnow

@@ -11,7 +11,7 @@ from typing import Any
 
 from sqlalchemy import Select, func, select
 
-from client.models import PointOut, TypeSummary
+from contract.models import PointOut, TypeSummary
 from server.db import Store
 from server.orm import PointRow, TypeRow
 from server.services.kbs import kb_id
@@ -185,10 +185,10 @@ def history(
                     )
                 )
             }
-            query = select(PointRow.created_at, PointRow.feasible, PointRow.type_pk).where(
+            by_type = select(PointRow.created_at, PointRow.feasible, PointRow.type_pk).where(
                 PointRow.kb_id == kb_pk
             )
-            rows = [(t, ok, names[pk]) for t, ok, pk in session.execute(query)]
+            rows = [(t, ok, names[pk]) for t, ok, pk in session.execute(by_type)]
     totals = Counter(name for _, _, name in rows)
     kept = [name for name, _ in totals.most_common(max_series)]
     if len(totals) > max_series:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
-from client.models import KnowledgeBase
+from contract.models import KnowledgeBase
 from server.db import Store
 from server.errors import Conflict, NotFound
 from server.orm import KnowledgeBaseRow, TypeRow, utcnow

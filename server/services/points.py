@@ -15,12 +15,12 @@ import math
 from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import bindparam, func, insert, or_, select, update
+from sqlalchemy import Table, bindparam, func, insert, or_, select, update
 from sqlalchemy.orm import Session
 
-from client.models import (
+from contract.models import (
     MAX_SOURCE_DEPTH,
     LivePoint,
     PointIn,
@@ -119,8 +119,8 @@ def _check_same_payload(key: str, stored: str | None, posted: str | None) -> Non
         )
 
 
-_TYPES = TypeRow.__table__
-_POINTS = PointRow.__table__
+_TYPES = cast(Table, TypeRow.__table__)
+_POINTS = cast(Table, PointRow.__table__)
 _TYPE_COLUMNS = (_TYPES.c.id, _TYPES.c.type_id, _TYPES.c.graph)
 _COUNT = (
     update(_TYPES)
@@ -277,7 +277,7 @@ def _stored_results(
         )
         for key, point_id, new_type, type_id, payload_hash in rows:
             result = PointResult(type_id=type_id, point_id=point_id, new_type=new_type)
-            out[key] = (result, payload_hash)
+            out[cast(str, key)] = (result, payload_hash)  # a key of `chunk`: not null
     return out
 
 

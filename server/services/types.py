@@ -11,7 +11,7 @@ from pydantic import TypeAdapter
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from client.models import Domain, Graph, MatchResult, TypeDetail, TypeSummary, Value
+from contract.models import Domain, Graph, MatchResult, TypeDetail, TypeSummary, Value
 from server.db import Store
 from server.errors import Conflict, InvalidInput, NotFound, TooLarge
 from server.graphs import GraphError, ResolvedGraph, TypeConflict, check_same_type, resolve_graph

@@ -39,19 +39,18 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from client.models import SurrogateState
+from contract.models import SurrogateState
 from server.db import Store
 from server.errors import NotFound
 from server.services.types import TrainingPoints, load_training_points
+from server.settings import ServiceSurrogateConfig
 from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
 from surrogate.additive import Groups, term_groups
-from surrogate.config import AdditiveMode, SurrogateConfig
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder, encoder_for
 from surrogate.models import MIN_POINTS, Fit, fit_classifier, warm_up
-from surrogate.optimize import OptimizerConfig
 from surrogate.pending import Pending, PendingBook
 from surrogate.predictors import FeasibilityPredictor
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
@@ -62,29 +61,7 @@ Key = tuple[str, str]
 ASKED, FIRST, REFRESH = 0, 1, 2  # queue priorities, the lowest served first
 _WARMED = threading.Event()  # torch's first-fit cost is paid once per process
 _WARM_LOCK = threading.Lock()
-
-
-@dataclass(frozen=True)
-class EngineConfig:
-    fit_in_child_process: bool = True  # False: fit in a thread of the server's own process
-    fit_threads: int = 1
-    max_inducing: int = SurrogateConfig.max_inducing
-    max_fit_points: int = SurrogateConfig.max_fit_points
-    instant_fit_points: int = SurrogateConfig.instant_fit_points
-    instant_fit_iters: int = SurrogateConfig.instant_fit_iters
-    instant_refit_factor: float = SurrogateConfig.instant_refit_factor
-    additive: AdditiveMode = SurrogateConfig.additive
-    balance_classes: bool = SurrogateConfig.balance_classes
-    refresh_s: float = SurrogateConfig.refresh_s
-    pending_ttl_s: float = SurrogateConfig.pending_ttl_s
-    prefit_types: int = SurrogateConfig.prefit_types
-    optimizer: OptimizerConfig = field(default_factory=OptimizerConfig)
-    # Replicas on one database: fits stored and loaded there, the pending book kept there.
-    share_fits: bool = True
-    pending_in_database: bool = False
-    # How long a replica waits before looking again at a type another replica is fitting.
-    claim_retry_s: float = 1.0
-    replica: str = field(default_factory=lambda: f"{socket.gethostname()}:{os.getpid()}")
+FIT_THREADS = 1  # the fit worker's torch threads: the other core is the server's
 
 
 @dataclass
@@ -120,14 +97,24 @@ class _Entry:
 
 
 class SurrogateEngine:
-    def __init__(self, store: Store, config: EngineConfig | None = None) -> None:
+    def __init__(
+        self,
+        store: Store,
+        config: ServiceSurrogateConfig | None = None,
+        *,
+        pending_in_database: bool = False,
+        replica: str | None = None,
+    ) -> None:
+        """`pending_in_database`: the pending book is the database's, shared by the replicas;
+        `replica`: the name that marks the fits this one stores (default host:pid)."""
         self.store = store
-        self.config = config or EngineConfig()
+        self.config = config or ServiceSurrogateConfig()
         ttl = self.config.pending_ttl_s
         self.pending: Pending = (
-            DatabasePendingBook(store, ttl) if self.config.pending_in_database else PendingBook(ttl)
+            DatabasePendingBook(store, ttl) if pending_in_database else PendingBook(ttl)
         )
-        self.shared = FitShare(store, self.config.replica) if self.config.share_fits else None
+        replica = replica or f"{socket.gethostname()}:{os.getpid()}"
+        self.shared = FitShare(store, replica) if self.config.share_fits else None
         self._entries: dict[Key, _Entry] = {}
         self._queue: dict[Key, int] = {}  # type -> priority, in the order queued
         self._busy: Key | None = None
@@ -181,10 +168,10 @@ class SurrogateEngine:
                 t.join(timeout=30)
 
     def _new_fitter(self) -> Fitter:
-        if not self.config.fit_in_child_process:
+        if not self.config.fit_process:
             return ThreadFitter()
         try:
-            return ChildProcessFitter(self.config.fit_threads)
+            return ChildProcessFitter(FIT_THREADS)
         except (RuntimeError, OSError) as exc:
             # e.g. spawn refused inside an unguarded `__main__` script: fit in a thread instead.
             log.warning("cannot start the fit process (%s); fitting in a thread", exc)

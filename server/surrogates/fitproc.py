@@ -29,9 +29,9 @@ def fit_job(
     seed: int,
     warm: Fit | None,
     max_inducing: int,
-    max_points: int = SurrogateConfig.max_fit_points,
+    max_points: int = SurrogateConfig().max_fit_points,
     groups: Groups = (),
-    balance: bool = SurrogateConfig.balance_classes,
+    balance: bool = SurrogateConfig().balance_classes,
 ) -> Fit:
     return fit_classifier(
         z,

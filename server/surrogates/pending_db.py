@@ -15,9 +15,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from datetime import timedelta
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import delete, func, or_, select
+from sqlalchemy import CursorResult, Table, delete, func, or_, select
 
 from server.db import Store
 from server.orm import KnowledgeBaseRow, PendingRow, utcnow
@@ -82,7 +82,7 @@ class DatabasePendingBook:
         with self.store.transaction(write=True) as session:
             session.execute(delete(PendingRow).where(PendingRow.kb_id == _kb(kb), gone))
             for row in rows:
-                session.execute(PendingRow.__table__.insert().values(row))
+                session.execute(cast(Table, PendingRow.__table__).insert().values(row))
 
     def _live(self, kb: str, *where: Any) -> list[tuple[int, PendingEntry]]:
         """The newest `MAX_PER_KB` live entries (newest first), with their row ids."""
@@ -112,7 +112,8 @@ class DatabasePendingBook:
         if not done:
             return 0
         with self.store.transaction(write=True) as session:
-            result = session.execute(delete(PendingRow).where(PendingRow.id.in_(done)))
+            deleted = delete(PendingRow).where(PendingRow.id.in_(done))
+            result = cast(CursorResult[Any], session.execute(deleted))
             return int(result.rowcount or 0)
 
     def count(self, kb: str) -> int:

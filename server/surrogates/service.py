@@ -7,9 +7,7 @@ field; SpaceExhausted (a finite space wholly excluded) is a 409.
 
 from __future__ import annotations
 
-import dataclasses
-
-from client.models import (
+from contract.models import (
     Constraint,
     ModelsIn,
     ModelSnapshot,
@@ -104,6 +102,6 @@ def models(engine: SurrogateEngine, kb: str, body: ModelsIn) -> ModelsOut:
         changed.append(ModelSnapshot.model_validate(snapshot.model_to_json(type_id, handle)))
     return ModelsOut(
         models=changed,
-        optimizer=dataclasses.asdict(engine.config.optimizer),
+        optimizer=engine.config.optimizer.model_dump(),
         pending_ttl_s=engine.config.pending_ttl_s,
     )

@@ -59,11 +59,12 @@ class ChildProcessFitter:
         try:
             self._conn.send(args)
             wait([self._conn, self._process.sentinel])
-            ok, value = self._conn.recv() if self._conn.poll() else (None, None)
+            reply: tuple[bool, Any] | None = self._conn.recv() if self._conn.poll() else None
         except (EOFError, OSError) as exc:
             raise WorkerDied(f"the fit worker ended ({exc})") from exc
-        if ok is None:
+        if reply is None:
             raise WorkerDied(f"the fit worker ended (exit code {self._process.exitcode})")
+        ok, value = reply  # (True, the Fit) or (False, the exception it raised)
         if not ok:
             raise value
         return value

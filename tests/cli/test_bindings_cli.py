@@ -9,7 +9,7 @@ from cli_support import cpkb_in_process
 from service_support import run_live_server
 
 from client import CpkbClient
-from client.bindings import BindingIn
+from contract.bindings import BindingIn
 
 
 def test_bindings_lists_what_planners_found_and_refuses_a_bad_limit(

@@ -100,10 +100,10 @@ def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Pat
 @pytest.mark.skipif(not hasattr(os, "nice"), reason="no process priorities on this platform")
 @pytest.mark.parametrize("nice", [None, "0", "3"])
 def test_serve_runs_below_the_priority_it_was_started_with(tmp_path: Path, nice: str | None):
-    """Planners sharing the machine come first (CPKB_SURROGATE_NICE, 5 unless set)."""
-    env = {k: v for k, v in os.environ.items() if k != "CPKB_SURROGATE_NICE"}
+    """Planners sharing the machine come first (CPKB_SURROGATE__NICE, 5 unless set)."""
+    env = {k: v for k, v in os.environ.items() if k != "CPKB_SURROGATE__NICE"}
     if nice is not None:
-        env["CPKB_SURROGATE_NICE"] = nice
+        env["CPKB_SURROGATE__NICE"] = nice
     port = free_port()
     command = [sys.executable, "-m", "cpkb", "serve", "--port", str(port)]
     command += ["--db", f"sqlite:///{tmp_path / 'kb.db'}"]

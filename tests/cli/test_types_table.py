@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from service_support import DIR_DOMAIN, POSE_DOMAIN, make_graph
 
-from client.models import TypeDetail
+from contract.models import TypeDetail
 from cpkb.cli.service import _differences, _short_ids
 
 

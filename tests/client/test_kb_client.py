@@ -10,7 +10,7 @@ import pytest
 from service_support import make_graph, make_point
 
 from client import BadRequest, Conflict, CpkbClient, NotFound, ServiceUnavailable
-from client.models import PointIn
+from contract.models import PointIn
 from cpkb.embedded import free_port
 
 Kb = tuple[CpkbClient, str]

@@ -13,7 +13,7 @@ import pytest
 from service_support import run_live_server
 
 from client import Conflict, CpkbClient
-from client.bindings import BindingIn
+from contract.bindings import BindingIn
 
 
 class LosesFirstAnswer(httpx.BaseTransport):

@@ -19,7 +19,7 @@ from fuzz_support import FUZZ, MAX_BODY_BYTES, snapshot
 from hypothesis import given
 from hypothesis import strategies as st
 
-from client.models import MAX_EDGES, MAX_NODES
+from contract.models import MAX_EDGES, MAX_NODES
 
 POINTS = "/v1/kbs/default/points"
 

@@ -115,7 +115,7 @@ class ClientStream(threading.Thread):
 def test_sigkill_mid_stream_loses_nothing_and_stores_nothing_twice(
     sqlite_url: str, tmp_path: Path
 ) -> None:
-    server = KillableServer(sqlite_url, tmp_path, env={"CPKB_SURROGATE_ENABLED": "false"})
+    server = KillableServer(sqlite_url, tmp_path, env={"CPKB_SURROGATE__ENABLED": "false"})
     server.start()
     stop = threading.Event()
     posters = [Poster(server.url, f"w{i}", stop, time.monotonic() + 480) for i in range(3)]

@@ -40,9 +40,9 @@ GRAPHS = [
 # Fits run in a thread of each replica: sharing them is the same, and starting a fit process
 # would cost each replica seconds of the suite's time.
 ENV = {
-    "CPKB_SURROGATE_CLAIM_RETRY_S": "0.3",
-    "CPKB_SURROGATE_REFRESH_S": "0.2",
-    "CPKB_SURROGATE_FIT_PROCESS": "false",
+    "CPKB_SURROGATE__CLAIM_RETRY_S": "0.3",
+    "CPKB_SURROGATE__REFRESH_S": "0.2",
+    "CPKB_SURROGATE__FIT_PROCESS": "false",
 }
 
 

@@ -107,7 +107,7 @@ def server_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     tmp = tmp_path_factory.mktemp("guarded")
     tokens = tmp / "tokens"
     tokens.write_text(f"# lab\n{TOKEN}\nsecond-token\n")
-    env = {"CPKB_TOKENS_FILE": str(tokens), "CPKB_SURROGATE_ENABLED": "false"}
+    env = {"CPKB_TOKENS_FILE": str(tokens), "CPKB_SURROGATE__ENABLED": "false"}
     with embedded_service(f"sqlite:///{tmp / 'kb.sqlite'}", env=env) as url:
         yield url
 

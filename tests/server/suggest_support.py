@@ -44,13 +44,14 @@ def as_decision(x: dict[str, Any]) -> dict[str, Any]:
     return {"#dir": x["d"], "#pose": x["p"]}
 
 
-def make_client(sqlite_url: str, **settings: Any) -> Any:
+def make_client(sqlite_url: str, **surrogate: Any) -> Any:
+    """A test client of a service whose surrogate knobs are `surrogate` (fits in a thread)."""
     from fastapi.testclient import TestClient
 
     from server.app import create_app
     from server.settings import Settings
 
-    config = Settings(database_url=sqlite_url, surrogate_fit_process=False, **settings)
+    config = Settings(database_url=sqlite_url, surrogate={"fit_process": False, **surrogate})
     return TestClient(create_app(config))
 
 

@@ -1,4 +1,4 @@
-"""The service's `surrogate_additive` setting reaches its fits and the snapshots planners fetch."""
+"""The service's `surrogate.additive` setting reaches its fits and the snapshots planners fetch."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def _post_placements(client: object, n: int) -> str:
 def test_the_fit_and_its_snapshot_carry_the_terms_the_setting_asks_for(
     sqlite_url: str, mode: str, terms: int
 ) -> None:
-    with make_client(sqlite_url, surrogate_additive=mode, surrogate_instant_fit_points=0) as client:
+    with make_client(sqlite_url, additive=mode, instant_fit_points=0) as client:
         type_id = _post_placements(client, 16)
         engine = client.app.state.surrogates
         assert engine.wait_idle(timeout=300)
@@ -45,5 +45,5 @@ def test_the_fit_and_its_snapshot_carry_the_terms_the_setting_asks_for(
 def test_an_unknown_mode_is_refused_at_start(sqlite_url: str) -> None:
     from pydantic import ValidationError
 
-    with pytest.raises(ValidationError, match="surrogate_additive"):
-        make_client(sqlite_url, surrogate_additive="all")
+    with pytest.raises(ValidationError, match=r"surrogate\.additive"):
+        make_client(sqlite_url, additive="all")

@@ -9,7 +9,7 @@ from typing import Any
 from service_support import make_graph, make_point
 from sqlalchemy import update
 
-from client.models import MAX_SOURCE_DEPTH
+from contract.models import MAX_SOURCE_DEPTH
 from server.db import Store
 from server.orm import PointRow
 

@@ -1,4 +1,4 @@
-"""The service's `surrogate_balance_classes` setting reaches the fits planners fetch."""
+"""The service's `surrogate.balance_classes` setting reaches the fits planners fetch."""
 
 from __future__ import annotations
 
@@ -29,9 +29,7 @@ def _unstructured_type(client: object) -> str:
 
 
 def _served_mean(sqlite_url: str, balance: bool) -> float:
-    with make_client(
-        sqlite_url, surrogate_balance_classes=balance, surrogate_instant_fit_points=0
-    ) as client:
+    with make_client(sqlite_url, balance_classes=balance, instant_fit_points=0) as client:
         type_id = _unstructured_type(client)
         assert client.app.state.surrogates.wait_idle(timeout=300)
         answer = client.post("/v1/kbs/default/models", json={"type_ids": [type_id]})

@@ -55,7 +55,7 @@ def _labelled(n: int, start: int = 0) -> list[tuple[float, bool]]:
 
 @pytest.mark.slow
 def test_queued_refits_of_one_type_run_as_one(sqlite_url: str) -> None:
-    with make_client(sqlite_url, surrogate_instant_fit_points=0) as client:
+    with make_client(sqlite_url, instant_fit_points=0) as client:
         engine = client.app.state.surrogates
         with held_coordinator(engine) as (held, refreshed):
             busy = _post(client, make_graph("Busy", ("a",)), _labelled(8))
@@ -73,7 +73,7 @@ def test_queued_refits_of_one_type_run_as_one(sqlite_url: str) -> None:
 
 @pytest.mark.slow
 def test_a_type_a_request_waits_on_is_fitted_first(sqlite_url: str) -> None:
-    with make_client(sqlite_url, surrogate_instant_fit_points=0) as client:
+    with make_client(sqlite_url, instant_fit_points=0) as client:
         engine = client.app.state.surrogates
         graphs = [make_graph(f"F{i}", (f"c{i}",)) for i in range(4)]
         ids = [_post(client, g, _labelled(8)) for g in graphs]
@@ -119,7 +119,7 @@ def test_a_new_type_has_a_model_at_once_while_a_long_fit_runs(sqlite_url: str) -
 
 @pytest.mark.slow
 def test_a_fit_that_lags_far_behind_its_points_gets_an_instant_refit(sqlite_url: str) -> None:
-    with make_client(sqlite_url, surrogate_instant_refit_factor=2.0) as client:
+    with make_client(sqlite_url, instant_refit_factor=2.0) as client:
         engine = client.app.state.surrogates
         graph = make_graph("Lagging", ("e",))
         type_id = _post(client, graph, _labelled(10))

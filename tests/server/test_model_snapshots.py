@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from suggest_support import post_points
 
-from client.models import ModelSnapshot
+from contract.models import ModelSnapshot
 from surrogate import snapshot
 from surrogate.encoding import SpaceEncoder
 
@@ -21,7 +21,7 @@ def test_a_snapshot_answers_what_predict_answers(client: Any) -> None:
     assert answer.status_code == 200
     body = answer.json()
     assert {m["type_id"] for m in body["models"]} == set(type_ids)
-    assert body["optimizer"]["n_gen"] >= 0 and body["optimizer"]["margin_abs"] >= 0
+    assert body["optimizer"]["generations"] >= 0 and body["optimizer"]["mpf_margin_abs"] >= 0
     xs = [{"#dir": d, "#pose": [x, 0.3, 0.0]} for d in ("top", "front") for x in (0.1, 0.9)]
     for raw in body["models"]:
         wire = ModelSnapshot.model_validate(raw)

@@ -25,7 +25,7 @@ def exchange(client: Any, run: str, points: list[dict[str, Any]], type_ids: list
 @pytest.fixture(params=["memory", "database"])
 def books(request: pytest.FixtureRequest, sqlite_url: str) -> Iterator[Any]:
     """A service whose pending book is in its process, or in its database (replicas)."""
-    with make_client(sqlite_url, surrogate_pending_store=request.param) as c:
+    with make_client(sqlite_url, pending_store=request.param) as c:
         yield c
 
 

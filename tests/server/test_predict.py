@@ -32,7 +32,7 @@ def test_a_prior_follows_new_points_while_the_fit_queue_is_busy(sqlite_url: str)
 
     from suggest_support import REACH
 
-    with make_client(sqlite_url, surrogate_refresh_s=0) as client:
+    with make_client(sqlite_url, refresh_s=0) as client:
         engine = client.app.state.surrogates
         x = {"#dir": "top", "#pose": [0.3, 0.3, 0.0]}
 
@@ -109,7 +109,7 @@ def test_a_type_loaded_afresh_serves_its_prior_counting_each_point_once(sqlite_u
         space = client.app.state.surrogates.model("default", type_id).space
     z = encoder_for(space).encode_points([x])
     expected = float(prior(z, np.array([False])).proba(z)[0])
-    with make_client(sqlite_url, surrogate_refresh_s=3600) as fresh:
+    with make_client(sqlite_url, refresh_s=3600) as fresh:
         url = f"/v1/kbs/default/types/{type_id}/predict"
         served = fresh.post(url, json={"x": [x]}).json()["p_feasible"][0]
     assert served == pytest.approx(expected, abs=1e-9) and expected < 0.5

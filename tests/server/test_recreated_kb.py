@@ -21,7 +21,7 @@ PROBE = {"#dir": "top", "#pose": [0.5, 0.5, 0.0]}
 @pytest.fixture
 def fitting(db_url: str) -> Iterator[TestClient]:
     """A service that fits (in a thread) and checks a type's points on every request."""
-    settings = Settings(database_url=db_url, surrogate_fit_process=False, surrogate_refresh_s=0)
+    settings = Settings(database_url=db_url, surrogate={"fit_process": False, "refresh_s": 0})
     with TestClient(create_app(settings)) as client:
         yield client
 

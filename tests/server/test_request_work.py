@@ -12,7 +12,7 @@ import httpx
 from fastapi.testclient import TestClient
 from service_support import make_graph, make_point, run_live_server
 
-from client.models import MAX_NODES
+from contract.models import MAX_NODES
 from server.app import create_app
 from server.settings import DEFAULT_GRAPH_NODES, Settings
 

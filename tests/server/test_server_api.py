@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from service_support import collision_pair, make_graph, make_point
 
-from client.models import SurrogateState
+from contract.models import SurrogateState
 
 
 def post(client: Any, points: list[dict[str, Any]], kb: str = "default") -> Any:

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from service_support import make_graph, make_point
 
-from client.models import PointIn
+from contract.models import PointIn
 from server.db import Store
 from server.schema import prepare_database
 from server.services.points import add_points
 from server.services.types import load_training_points
-from server.surrogates.engine import EngineConfig, SurrogateEngine
+from server.settings import ServiceSurrogateConfig
+from server.surrogates.engine import SurrogateEngine
 from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
 from surrogate.encoding import SpaceEncoder
@@ -149,7 +150,7 @@ def test_a_restarted_engine_serves_the_stored_fit_without_fitting(store: Store) 
     graph = make_graph()
     points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(30)]
     type_id = add_points(store, "default", points).results[0].type_id
-    config = EngineConfig(fit_in_child_process=False, prefit_types=0)
+    config = ServiceSurrogateConfig(fit_process=False, prefit_types=0)
     first = SurrogateEngine(store, config)
     first.start()
     try:
@@ -178,7 +179,7 @@ def test_a_fit_queued_while_the_engine_stops_does_not_restart_it(store: Store) -
     graph = make_graph()
     points = [PointIn.model_validate(make_point(i, graph=graph)) for i in range(6)]
     type_id = add_points(store, "default", points).results[0].type_id
-    engine = SurrogateEngine(store, EngineConfig(fit_in_child_process=False, prefit_types=0))
+    engine = SurrogateEngine(store, ServiceSurrogateConfig(fit_process=False, prefit_types=0))
     engine.start()
     coordinator = engine._thread
     engine.stop()

@@ -106,7 +106,7 @@ def test_pending_suggestions_push_concurrent_planners_apart(sqlite_url: str) -> 
 
 @pytest.mark.slow
 def test_a_seed_reproduces_the_suggestion_for_a_given_model_state(sqlite_url: str) -> None:
-    with make_client(sqlite_url, surrogate_pending_ttl_s=0) as client:
+    with make_client(sqlite_url, pending_ttl_s=0) as client:
         type_ids = post_points(client, 12)
         assert client.app.state.surrogates.wait_idle(timeout=300)
         body = suggest_body(type_ids, seed=9)
@@ -135,7 +135,7 @@ def test_lookahead_picks_a_choice_that_a_feasible_continuation_can_follow(
 
 @pytest.mark.slow
 def test_a_batch_is_spread_distinct_and_pending(sqlite_url: str) -> None:
-    with make_client(sqlite_url, surrogate_pending_ttl_s=0) as client:
+    with make_client(sqlite_url, pending_ttl_s=0) as client:
         type_ids = post_points(client, 40)
         assert client.app.state.surrogates.wait_idle(timeout=300)
         single = client.post(URL, json=suggest_body(type_ids, seed=3)).json()

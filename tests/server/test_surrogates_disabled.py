@@ -1,4 +1,4 @@
-"""With CPKB_SURROGATE_ENABLED=false the service keeps points but has no GP engine."""
+"""With CPKB_SURROGATE__ENABLED=false the service keeps points but has no GP engine."""
 
 from fastapi.testclient import TestClient
 from service_support import make_point
@@ -8,7 +8,7 @@ from server.settings import Settings
 
 
 def test_disabled_surrogates_store_points_and_answer_503_to_suggest(sqlite_url: str) -> None:
-    app = create_app(Settings(database_url=sqlite_url, surrogate_enabled=False))
+    app = create_app(Settings(database_url=sqlite_url, surrogate={"enabled": False}))
     with TestClient(app) as http:
         posted = http.post("/v1/kbs/default/points", json={"points": [make_point(0)]})
         assert posted.status_code == 201
@@ -17,5 +17,5 @@ def test_disabled_surrogates_store_points_and_answer_503_to_suggest(sqlite_url: 
             f"/v1/kbs/default/types/{type_id}/predict", json={"x": [make_point(0)["x"]]}
         )
         assert answer.status_code == 503
-        assert "CPKB_SURROGATE_ENABLED" in answer.json()["detail"]
+        assert "CPKB_SURROGATE__ENABLED" in answer.json()["detail"]
         assert http.get(f"/v1/kbs/default/types/{type_id}").status_code == 200

@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 from service_support import collision_pair, make_graph
 
-from client.models import Graph
+from contract.models import Graph
 from server.graphs import GraphError, TypeConflict, check_same_type, check_x, resolve_graph
 
 

@@ -181,7 +181,7 @@ def test_the_heading_difference_wraps_around_the_turn() -> None:
 
 def test_the_wire_contract_refuses_a_heading_without_a_framed_planar_pose() -> None:
     """The wire models check domains; the surrogate library trusts what they let through."""
-    from client.models import ContinuousDomain as WireDomain
+    from contract.models import ContinuousDomain as WireDomain
 
     with pytest.raises(ValidationError, match="heading needs a frame"):
         WireDomain(low=[0.0, 0.0, 0.0], high=[1.0, 1.0, 1.0], heading=2)
@@ -252,7 +252,7 @@ def test_a_pair_with_one_scale_only_keeps_the_seed_unit_encoding() -> None:
 
 
 def test_a_scale_survives_the_wire_and_needs_a_framed_planar_pose() -> None:
-    from client.models import ContinuousDomain as WireDomain
+    from contract.models import ContinuousDomain as WireDomain
 
     wire = WireDomain(low=[0.0] * 3, high=[1.0] * 3, frame="tray", heading=2, scale=[0.3, 0.1])
     domain = domain_from_json(wire.model_dump())
@@ -296,7 +296,7 @@ def test_a_relative_only_pair_is_seen_through_its_relative_pose_alone() -> None:
 
 @pytest.mark.parametrize("flag", ["relative_only", "periodic"])
 def test_a_pose_flag_survives_the_wire_needs_a_heading_and_off_leaves_the_contract(flag) -> None:
-    from client.models import ContinuousDomain as WireDomain
+    from contract.models import ContinuousDomain as WireDomain
 
     pose = {"low": [0.0] * 3, "high": [1.0] * 3, "frame": "tray"}
     wire = WireDomain(**pose, heading=2, **{flag: True})

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from surrogate.acquisition import MPF, ConstraintTerm, PendingPoints, Scored, ucb
+from surrogate.config import OptimizerConfig
 from surrogate.domains import CategoricalDomain, ContinuousDomain
 from surrogate.encoding import SpaceEncoder
 from surrogate.models import fit_classifier, fit_regression
 from surrogate.optimize import (
-    OptimizerConfig,
     SpaceExhausted,
     maximize,
     maximize_batch,
@@ -103,7 +103,7 @@ def test_margin_spreads_children_over_the_likely_feasible_region(mpf: MPF) -> No
     argmax piles them up next to each other."""
 
     def children(margin: float) -> list[dict]:
-        config = OptimizerConfig(margin=margin, margin_abs=0.0)
+        config = OptimizerConfig(mpf_margin=margin, mpf_margin_abs=0.0)
         found: list[dict] = []
         for seed in range(6):
             found.append(maximize(mpf, SPACE, exclude=found, seed=seed, config=config).x)
@@ -153,7 +153,7 @@ def test_children_of_a_flat_acquisition_fill_the_inside_of_the_box() -> None:
     def flat(cols: dict) -> np.ndarray:
         return np.full(len(cols["pose"]), 0.3)
 
-    config = OptimizerConfig(margin=0.1, margin_abs=0.025)
+    config = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)
     children: list[dict] = []
     for seed in range(24):
         children.append(maximize(Scored(flat), box, exclude=children, seed=seed, config=config).x)
@@ -175,7 +175,7 @@ def test_without_walls_the_children_of_a_flat_acquisition_reach_the_faces() -> N
 
     first = {"pose": [0.5, 0.5, 0.5]}
     for walls, on_a_face in ((False, True), (True, False)):
-        config = OptimizerConfig(margin=0.1, margin_abs=0.025, walls=walls)
+        config = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025, spread_walls=walls)
         x = maximize(Scored(flat), box, exclude=[first], seed=3, config=config).x["pose"]
         near = min(min(v, 1.0 - v) for v in x) < 0.1
         assert near is on_a_face, (walls, x)
@@ -190,17 +190,17 @@ def test_a_batch_scores_each_candidate_once(mpf: MPF) -> None:
         scored.append(np.column_stack([cols["dir"], cols["pose"]]))
         return mpf(cols)
 
-    config = OptimizerConfig(pop_size=24, n_gen=3, raw_samples=128)
+    config = OptimizerConfig(pop_size=24, generations=3, raw_samples=128)
     found = maximize_batch(Scored(counting), SPACE, seed=4, config=config, n=3)
     rows = np.vstack(scored)
     assert len(found) == 3
     assert len(rows) == len(np.unique(rows, axis=0))
-    assert len(rows) <= config.raw_samples + (config.n_gen - 1) * config.pop_size
+    assert len(rows) <= config.raw_samples + (config.generations - 1) * config.pop_size
 
 
 def test_a_batch_answers_as_if_each_point_were_excluded_in_turn(mpf: MPF) -> None:
     children = [{"dir": "front", "pose": [0.8, 0.2]}, {"dir": "left", "pose": [0.7, 0.1]}]
-    config = OptimizerConfig(margin=0.1, margin_abs=0.025)
+    config = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)
     batch = maximize_batch(mpf, SPACE, exclude=children, seed=3, config=config, n=3)
     one_by_one = []
     for _ in range(3):

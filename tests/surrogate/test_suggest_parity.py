@@ -20,17 +20,17 @@ import pytest
 
 from client import CpkbClient
 from client.errors import BadRequest
-from client.models import PointIn, SuggestIn, SuggestOut
+from contract.models import PointIn, SuggestIn, SuggestOut
 from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from
+from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json
-from surrogate.optimize import OptimizerConfig
 from surrogate.pending import PendingBook
 from surrogate.sources import InMemoryModels
 from surrogate.suggest import InvalidRequest, SuggestAnswer, SuggestRequest, suggest
 
 RECORDED = json.loads((Path(__file__).parent / "fixtures" / "suggest_requests.json").read_text())
 REQUESTS: list[dict[str, Any]] = RECORDED["requests"]
-SERVICE_OPTIMIZER = OptimizerConfig(margin=0.1, margin_abs=0.025)  # the service's defaults
+SERVICE_OPTIMIZER = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)  # the service's defaults
 
 
 def _decision_space(graph: Mapping[str, Any]) -> dict[str, Any]:

@@ -8,6 +8,7 @@ method (`planner.config.PRESETS`) is its base method's sampler under the preset'
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -26,8 +27,16 @@ def register(method: str, factory: SamplerFactory, *, uses_knowledge: bool = Fal
         _USES_KNOWLEDGE.add(method)
 
 
+@functools.cache
 def _load_builtins() -> None:
-    from planner.search.samplers import cp_bo, mcts_bo, optuna_tpe, quasi_random  # noqa: F401
+    """The built-in samplers, registered here (not by their modules, which would import this
+    package back)."""
+    from planner.search.samplers import cp_bo, mcts_bo, optuna_tpe, quasi_random
+
+    register("cp-bo", cp_bo.factory, uses_knowledge=True)
+    register("mcts-bo", mcts_bo.factory)
+    register("optuna-tpe", optuna_tpe.factory)
+    register("quasi-random", quasi_random.factory)
 
 
 def methods() -> list[str]:

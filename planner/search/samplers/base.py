@@ -13,7 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from client.models import Value
+from contract.models import Value
 from planner.skeleton import DecisionVar
 
 

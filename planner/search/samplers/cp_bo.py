@@ -17,12 +17,12 @@ Each of these extensions of the paper's sampler has its switch in `CpBoConfig`; 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from client.models import CategoricalDomain, Constraint, Value
+from contract.models import CategoricalDomain, Constraint, SuggestedPoint, SuggestOut, Value
 from planner.config import CpBoConfig, PlanConfig, QuasiRandomConfig
 from planner.knowledge import KnowledgeSession
-from planner.search.samplers import register
 from planner.search.samplers.base import Proposal, SampleContext
 from planner.search.samplers.quasi_random import space_filling
 
@@ -144,7 +144,7 @@ class CpBoSampler:
         )
         if answer is None:
             return None
-        points = answer.batch or [answer]
+        points: Sequence[SuggestedPoint | SuggestOut] = answer.batch or [answer]
         proposals = [
             Proposal(value, point.mpf)
             for point in points
@@ -211,12 +211,9 @@ def _valid(value: Value, ctx: SampleContext) -> bool:
     )
 
 
-def _factory(
+def factory(
     *, config: PlanConfig, knowledge: KnowledgeSession | None = None, **_: object
 ) -> CpBoSampler:
     if knowledge is None:
         raise ValueError("cp-bo needs a knowledge session")
     return CpBoSampler(knowledge, config.cp_bo, config.quasi_random)
-
-
-register("cp-bo", _factory, uses_knowledge=True)

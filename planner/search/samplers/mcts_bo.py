@@ -13,12 +13,17 @@ variance), the node expands like the Voronoi sampler. Each node warm-starts from
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
-from client.models import CategoricalDomain, Value
+import numpy as np
+
+from contract.models import CategoricalDomain, Value
 from planner.config import MctsBoConfig, PlanConfig, QuasiRandomConfig
-from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import space_filling
+
+if TYPE_CHECKING:
+    from surrogate.models import Fit
 
 
 class MctsBoSampler:
@@ -29,12 +34,12 @@ class MctsBoSampler:
         self,
         config: MctsBoConfig | None = None,
         fallback: QuasiRandomConfig | None = None,
-        **overrides: float | int | bool,
+        **overrides: Any,
     ) -> None:
         """`overrides`: fields of `config` by name (`beta=0.1`), for a quick variant."""
         self.config = replace(config if config is not None else MctsBoConfig(), **overrides)
         self.fallback = fallback if fallback is not None else QuasiRandomConfig()
-        self._fits: dict[tuple, object] = {}
+        self._fits: dict[tuple, Fit] = {}
         self.guided = 0
         self.unguided = 0
 
@@ -66,7 +71,7 @@ class MctsBoSampler:
         seed = int(ctx.rng.integers(2**31 - 1))
         fit = fit_regression(
             z,
-            list(rewards),
+            np.asarray(rewards, dtype=float),
             seed=seed,
             warm=self._fits.get(key),
             max_iters=config.fit_iterations,
@@ -91,8 +96,5 @@ class MctsBoSampler:
         self._fits.clear()
 
 
-def _factory(*, config: PlanConfig, **_: object) -> MctsBoSampler:
+def factory(*, config: PlanConfig, **_: object) -> MctsBoSampler:
     return MctsBoSampler(config.mcts_bo, config.quasi_random)
-
-
-register("mcts-bo", _factory)

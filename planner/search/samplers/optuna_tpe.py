@@ -19,9 +19,8 @@ import optuna
 from optuna.distributions import BaseDistribution, CategoricalDistribution, FloatDistribution
 from optuna.trial import Trial, TrialState
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.config import OptunaTpeConfig, PlanConfig
-from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.quasi_random import untried_choice
 
@@ -114,10 +113,7 @@ class OptunaTpeSampler:
         self._pending.clear()
 
 
-def _factory(*, seed: int, world: object, config: PlanConfig, **_: object) -> OptunaTpeSampler:
+def factory(*, seed: int, world: object, config: PlanConfig, **_: object) -> OptunaTpeSampler:
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     n_layers = len(world.skeleton.layers)  # type: ignore[attr-defined]
     return OptunaTpeSampler(seed=seed, n_layers=n_layers, config=config.optuna_tpe)
-
-
-register("optuna-tpe", _factory)

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.config import PlanConfig, QuasiRandomConfig
-from planner.search.samplers import register
 from planner.search.samplers.base import SampleContext
 
 
@@ -82,8 +81,5 @@ class QuasiRandomSampler:
         return None
 
 
-def _factory(*, config: PlanConfig, **_: object) -> QuasiRandomSampler:
+def factory(*, config: PlanConfig, **_: object) -> QuasiRandomSampler:
     return QuasiRandomSampler(config.quasi_random)
-
-
-register("quasi-random", _factory)

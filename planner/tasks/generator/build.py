@@ -263,7 +263,8 @@ def free_area(rng: np.random.Generator, floor: Floor, ws: WorkspaceDraft) -> boo
         ob = rng.uniform(0.07, 0.12, size=2)
         side = rng.choice([-1, 1])
         dy = side * (area.sy / 2 + ob[1] / 2 + GAP + 0.002)
-        rect = Rect(*local_to_world(area, rng.uniform(-0.3, 0.3) * area.sx, dy), *ob, area.yaw)
+        x, y = local_to_world(area, rng.uniform(-0.3, 0.3) * area.sx, dy)
+        rect = Rect(x, y, ob[0], ob[1], area.yaw)
         if Floor([*floor.taken, area]).free(rect):
             floor.take(area)
             floor.take(rect)

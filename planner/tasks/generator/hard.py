@@ -20,6 +20,7 @@ import numpy as np
 
 from planner.tasks.generator import tight
 from planner.tasks.generator.build import WorkspaceDraft
+from planner.tasks.generator.yaml_out import write_yaml
 
 KINDS = ("tight-pack",)
 TARGET_ATTEMPTS = 64  # draws of a target before the suite's seed is given up as barren
@@ -90,7 +91,6 @@ def draw_tight_pack(
 ) -> tuple[float, dict[str, Any]] | None:
     """One tight-packing workspace and its tasks written to `directory`, and its packing's fill
     and witness binding; None when this draw has no room or no witness."""
-    from planner.tasks.generator.suite import write_yaml
 
     n = int(rng.integers(tight.BODIES[0], tight.BODIES[1] + 1))
     bodies = tight.draw_bodies(rng, n)

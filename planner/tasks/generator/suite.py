@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from planner.tasks.generator.build import (
     Shared,
@@ -36,6 +35,7 @@ from planner.tasks.generator.hard import (
     quasi_random_probe,
 )
 from planner.tasks.generator.layout import draw_body
+from planner.tasks.generator.yaml_out import write_yaml
 
 KINDS = ("desk", "regrasp", "pack")
 # Redraws of a target's own bodies (and, for pack, its tray) before the workspace is redrawn:
@@ -211,24 +211,6 @@ def pack_files(rng: np.random.Generator, ws: str, n: int) -> Files:
             goal=[f"On({b}, region_tray)" for b in rest],
         ),
     }
-
-
-class _Dumper(yaml.SafeDumper):
-    """Numbers and short lists on one line (`size: [0.05, 0.05, 0.2]`), the rest as blocks."""
-
-
-def _list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
-    flow = all(isinstance(v, int | float) for v in data) or (
-        all(isinstance(v, str) for v in data) and sum(len(v) for v in data) < 60
-    )
-    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
-
-
-_Dumper.add_representer(list, _list)
-
-
-def write_yaml(path: Path, data: dict[str, Any]) -> None:
-    path.write_text(yaml.dump(data, Dumper=_Dumper, sort_keys=False, width=100))
 
 
 def probe(path: Path, settings: ProbeSettings, seeds: list[int]) -> list[int | None]:

@@ -219,7 +219,7 @@ def witness(task_path: Path, slots: Mapping[str, tuple[float, float]]) -> dict[s
     world = load_world(task_path, seed=0)
     try:
         scene = world.scene
-        state = world.initial_state()
+        state: object = world.initial_state()
         bindings: dict[str, Any] = {}
         for index, decision in enumerate(world.skeleton.decisions):
             body, region_name = world.pose_sources[decision.var]

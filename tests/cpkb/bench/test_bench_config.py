@@ -79,10 +79,10 @@ def test_the_embedded_services_settings_are_pinned_with_the_results(
 ) -> None:
     from server.settings import surrogate_overrides
 
-    monkeypatch.setenv("CPKB_SURROGATE_ADDITIVE", "choices")
+    monkeypatch.setenv("CPKB_SURROGATE__ADDITIVE", "choices")
     monkeypatch.setenv("CPKB_PORT", "8123")  # not a surrogate setting: results do not depend on it
     service = surrogate_overrides()
-    assert service == {"surrogate_additive": "choices"}
+    assert service == {"surrogate.additive": "choices"}
     out = tmp_path / "out"
     scenarios = [Scenario("analytic:desk", "quasi-random", 0)]
     done = run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50, service=service)
@@ -99,7 +99,7 @@ def test_where_the_embedded_service_ran_is_pinned_with_the_results(
     """Off the workers' cores by default; a rerun on shared cores is another variant."""
     from cpkb.cli import main
 
-    for name in [k for k in os.environ if k.startswith("CPKB_SURROGATE_")]:
+    for name in [k for k in os.environ if k.startswith("CPKB_SURROGATE__")]:
         monkeypatch.delenv(name)
     out = tmp_path / "out"
     argv = ["bench", "--tasks", "analytic:desk", "--methods", "quasi-random", "--workers", "1"]

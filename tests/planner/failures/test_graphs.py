@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from planner.failures import Encodings, failure_graph, size_constants
 from planner.failures.graphs import SIZE_DOMAIN, size_var
 from planner.search.analytic import GRASP_DOMAIN, analytic_world, pick_place_skeleton

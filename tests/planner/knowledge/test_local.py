@@ -15,22 +15,22 @@ import numpy as np
 import pytest
 
 from client import CpkbClient
-from client.models import SuggestIn
+from contract.models import SuggestIn
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from, stated_prior
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler
+from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
-from surrogate.optimize import OptimizerConfig
 from surrogate.predictors import PriorPredictor, RecentPoints, VGPPredictor
 from surrogate.sources import InMemoryModels
 
 FIXTURE = Path(__file__).parents[2] / "surrogate" / "fixtures" / "suggest_requests.json"
 RECORDED = json.loads(FIXTURE.read_text())
-OPTIMIZER = OptimizerConfig(margin=0.1, margin_abs=0.025)  # the service's defaults
+OPTIMIZER = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)  # the service's defaults
 
 
 def _memory() -> InMemoryModels:
@@ -245,8 +245,8 @@ def test_the_planners_spread_rule_holds_over_the_services_settings(walls):
     settings the service sends with its snapshots."""
     local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False, spread_walls=walls)
     local.suggest(_grasp_request(), rollout=0, stored=0)
-    assert local._config.walls is walls
-    assert local._config.margin == OPTIMIZER.margin
+    assert local._config.spread_walls is walls
+    assert local._config.mpf_margin == OPTIMIZER.mpf_margin
 
 
 def test_served_points_stay_pending_until_a_point_answers_them():

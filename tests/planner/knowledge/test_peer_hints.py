@@ -6,7 +6,7 @@ import pytest
 from wait_support import wait_until
 
 from client import CpkbClient
-from client.models import Constraint, LivePoint
+from contract.models import Constraint, LivePoint
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.knowledge.live import PeerHints

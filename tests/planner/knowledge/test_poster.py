@@ -7,7 +7,7 @@ import threading
 import time
 from collections.abc import Sequence
 
-from client.models import PointIn
+from contract.models import PointIn
 from planner.knowledge.poster import PointPoster
 
 GRAPH = {

@@ -4,7 +4,7 @@ planner's pending point pushes a local suggestion apart, through a real service.
 from __future__ import annotations
 
 from client import CpkbClient
-from client.models import Constraint, PendingPoint
+from contract.models import Constraint, PendingPoint
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
 from planner.knowledge.local import in_request_terms

@@ -201,7 +201,7 @@ class _ScriptedKnowledge:
         return [c for c in self.active if var in c.bind.values() or not path]
 
     def suggest(self, var, path, siblings, constraints, seed, *, n=1):
-        from client.models import SuggestedPoint, SuggestOut
+        from contract.models import SuggestedPoint, SuggestOut
 
         self.stats.suggestions += 1
         self.batches.append(n)
@@ -220,7 +220,7 @@ def test_a_batch_is_asked_anew_for_a_type_on_a_later_decision_it_looks_ahead_to(
     quarter more rollouts, `benchmarks/results/paper7R`); an unchanged set keeps it."""
     import numpy as np
 
-    from client.models import Constraint
+    from contract.models import Constraint
     from planner.search.analytic import analytic_world
     from planner.search.samplers.base import SampleContext
     from planner.search.samplers.cp_bo import CpBoSampler
@@ -250,7 +250,7 @@ def test_the_paper_preset_asks_for_one_point_per_expansion_and_keeps_no_continua
     under a suggested grasp asks for itself rather than taking the grasp answer's placement."""
     import numpy as np
 
-    from client.models import Constraint
+    from contract.models import Constraint
     from planner.config import method_config
     from planner.search.analytic import analytic_world
     from planner.search.samplers.base import SampleContext
@@ -366,7 +366,7 @@ class _RatedKnowledge(_ScriptedKnowledge):
         self.mpf = mpf
 
     def suggest(self, var, path, siblings, constraints, seed, *, n=1):
-        from client.models import SuggestedPoint, SuggestOut
+        from contract.models import SuggestedPoint, SuggestOut
 
         answer = super().suggest(var, path, siblings, constraints, seed, n=n)
         shift = 0.01 * len(siblings) if not hasattr(var.domain, "choices") else 0.0
@@ -399,7 +399,7 @@ def test_a_placement_rated_below_explore_below_is_space_filling(mpf, guided):
     """A proposal the knowledge base rates below `explore_below` gives way to a space-filling
     value (counted in the run's `explored`), rated as the proposal was, so that the node's
     outlook stays the knowledge base's best; one rated above it is taken."""
-    from client.models import Constraint
+    from contract.models import Constraint
     from planner.config import CpBoConfig
     from planner.search.analytic import analytic_world
     from planner.search.samplers.base import Proposal
@@ -423,7 +423,7 @@ def test_random_every_interleaves_space_filling_placements_but_never_grasps():
     a grasp is always the knowledge base's choice."""
     import numpy as np
 
-    from client.models import Constraint
+    from contract.models import Constraint
     from planner.config import CpBoConfig
     from planner.search.analytic import analytic_world
     from planner.search.samplers.base import Proposal, SampleContext

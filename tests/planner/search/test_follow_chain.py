@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from client.models import Value
+from contract.models import Value
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
-from client.models import CategoricalDomain, ContinuousDomain, Value
+from contract.models import CategoricalDomain, ContinuousDomain, Value
 from planner.config import SearchConfig
 from planner.search import PWUCT
 from planner.search.samplers.quasi_random import QuasiRandomSampler

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from client.models import ContinuousDomain
+from contract.models import ContinuousDomain
 from planner.search.samplers.base import SampleContext
 from planner.search.samplers.mcts_bo import MctsBoSampler
 from planner.skeleton import DecisionVar, OperatorCall

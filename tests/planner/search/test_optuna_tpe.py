@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers import make, methods

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import pytest
 
-from client.models import Value
+from contract.models import Value
 from planner.search import PWUCT
 from planner.search.analytic import AnalyticWorld, analytic_world
 from planner.search.samplers.base import SampleContext

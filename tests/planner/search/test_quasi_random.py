@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from planner.search.samplers.quasi_random import untried_choice, voronoi_point
 
 

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 
 import pytest
 
-from client.models import Value
+from contract.models import Value
 from planner.config import ConfigError, PlanConfig, SearchConfig, method_config
 from planner.run import run_plan
 from planner.search import PWUCT

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import pytest
 
-from client.models import CategoricalDomain, ContinuousDomain
+from contract.models import CategoricalDomain, ContinuousDomain
 from planner.config import ConfigError, SearchConfig
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_feasible

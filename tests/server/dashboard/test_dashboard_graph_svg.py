@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from client.models import Graph
+from contract.models import Graph
 from server.dashboard.graph_svg import FALLBACK_NOTE, Box, Layout, label_width, layout, render_svg
 from tests.service_support import make_graph
 

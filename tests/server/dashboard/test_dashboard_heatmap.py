@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 from pydantic import TypeAdapter
 
-from client.models import Domain
+from contract.models import Domain
 from server.dashboard.heatmap import (
     HATCH_ID,
     NO_MODEL_COLOUR,

@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import TypeAdapter
 
-from client.models import Domain
+from contract.models import Domain
 from server.dashboard.heatmap import Slice
 from server.dashboard.history_svg import render_history_svg
 from server.dashboard.slices import held_choices, render_slices_svg

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import TypeAdapter
 
-from client.models import Domain
+from contract.models import Domain
 from server.dashboard.heatmap import continuous_dims
 from server.dashboard.views import choose_dims, dim_lengthscales
 

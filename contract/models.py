@@ -19,6 +19,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic.config import JsonDict
 
 MAX_LABEL = 128
 MAX_CHOICES = 64
@@ -66,9 +67,9 @@ class _Strict(BaseModel):
 
 
 # Examples for the OpenAPI schema (/docs): an inverse-kinematics failure of one grasp and pose.
-_DIR = {"kind": "categorical", "choices": ["front", "right", "top", "back", "left"]}
-_POSE = {"kind": "continuous", "low": [0.0, 0.0, -3.14], "high": [1.0, 1.0, 3.14]}
-_GRAPH_EXAMPLE = {
+_DIR: JsonDict = {"kind": "categorical", "choices": ["front", "right", "top", "back", "left"]}
+_POSE: JsonDict = {"kind": "continuous", "low": [0.0, 0.0, -3.14], "high": [1.0, 1.0, 3.14]}
+_GRAPH_EXAMPLE: JsonDict = {
     "nodes": [
         {"id": "f", "role": "failure", "label": "Inv-kin"},
         {"id": "d", "role": "decision", "label": "#dir", "domain": _DIR},
@@ -81,7 +82,7 @@ _GRAPH_EXAMPLE = {
         {"source": "c0", "target": "f", "label": "collides"},
     ],
 }
-_POINT_EXAMPLE = {
+_POINT_EXAMPLE: JsonDict = {
     "graph": _GRAPH_EXAMPLE,
     "x": {"#dir": "top", "#pose": [0.42, 0.7, 1.57]},
     "feasible": False,

@@ -9,7 +9,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from client.models import MAX_LABEL, MAX_SEED, Label, Text, Value, _Strict
+from contract.models import MAX_LABEL, MAX_SEED, Label, Text, Value, _Strict
 
 MAX_BINDINGS_PAGE = 100
 SKELETON_EXAMPLE = "3f0c" * 16
