@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import sys
 import tempfile
 import time
@@ -27,11 +28,18 @@ from cpkb.bench.scenarios import (
     predecessors,
     task_kinds,
 )
-from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
+from cpkb.bench.stats import (
+    HEADERS,
+    summarize,
+    summarize_by_kind,
+    table_rows,
+    write_summary,
+)
 from cpkb.bench.together import HEADERS as TOGETHER_HEADERS
 from cpkb.bench.together import GroupCheck, summarize_together, write_together
 from cpkb.bench.together import table_rows as together_rows
 from cpkb.bench.variants import Variant
+from server.cpus import format_cpu_list
 from server.settings import surrogate_overrides
 
 
@@ -59,6 +67,10 @@ class BenchSettings:
     # The embedded service on the cores the workers leave (`spare`, where there are any) or on
     # any core at a lower priority (`shared`).
     service_cores: Literal["spare", "shared"] = "spare"
+    # Every method gets this many cores in all (`--cores`): a guided method's planner one and
+    # its embedded service the others (or the planner's, with one); a method without knowledge
+    # runs that many trees at once (`cpkb.bench.portfolio`). None: the cores are not counted.
+    cores: int | None = None
 
 
 def plan_run(
@@ -96,8 +108,49 @@ def _is_task_file(task: str) -> bool:
     return "/" in task or task.endswith((".yaml", ".yml"))
 
 
+def run_cores(cores: int) -> tuple[int, ...]:
+    """The cores of a `--cores` run: the first `cores` this process may use."""
+    allowed = sorted(os.sched_getaffinity(0))
+    if cores > len(allowed):
+        raise ValueError(f"--cores {cores}: this bench may use only {len(allowed)} cores")
+    return tuple(allowed[:cores])
+
+
+def service_env(cores: Sequence[int]) -> dict[str, str]:
+    """Where a `--cores` run's embedded service runs: on the cores its planner leaves, or on
+    the planner's own core when it has only one (the service counts among the run's cores)."""
+    return {"CPKB_CPU_CORES": format_cpu_list(set(cores[1:] or cores))}
+
+
+def portfolio_methods(settings: BenchSettings) -> set[str]:
+    """The methods that run as a portfolio on `--cores`: those that use no knowledge base."""
+    from planner.search.samplers import uses_knowledge
+
+    runs = {method: method_run(method, settings.variants) for method in settings.methods}
+    samplers = {method: TRANSFER_METHODS.get(run, run) for method, run in runs.items()}
+    return {method for method, sampler in samplers.items() if not uses_knowledge(sampler)}
+
+
+def _check_cores(settings: BenchSettings) -> None:
+    """`--cores` counts every core a run uses: one run at a time, the bench's own service."""
+    if settings.cores is None:
+        return
+    if settings.workers != 1:
+        raise ValueError("--cores N gives one run N cores at a time: use --workers 1")
+    if settings.kb_url is not None or settings.ray_address is not None:
+        raise ValueError("--cores counts the embedded service's cores: not with --kb-url or --ray")
+    if settings.concurrent > 1:
+        raise ValueError("--cores gives one run its cores: not with --concurrent")
+    if settings.service_cores != "spare":
+        raise ValueError("--cores places the service itself: not with --service-cores shared")
+    if not hasattr(os, "sched_getaffinity"):
+        raise ValueError("--cores pins processes to cores, which this platform cannot")
+    run_cores(settings.cores)
+
+
 def check_request(settings: BenchSettings) -> None:
     """Name the unknown task or method before any worker starts."""
+    _check_cores(settings)
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import require_ray
 
@@ -144,11 +197,15 @@ def _check_mixed(settings: BenchSettings) -> None:
 
 @contextlib.contextmanager
 def knowledge_service(
-    kb_url: str | None, token: str | None, planner_cores: int = 0
+    kb_url: str | None,
+    token: str | None,
+    planner_cores: int = 0,
+    env: Mapping[str, str] | None = None,
 ) -> Iterator[ServiceKbs]:
     """The shared service if given; else one embedded service on a temporary SQLite file for
     the whole bench (each scenario still gets its own knowledge base, deleted after it), off
-    the first `planner_cores` cores (`cpkb.embedded.embedded_service`)."""
+    the first `planner_cores` cores (`cpkb.embedded.embedded_service`); `env`: its
+    environment's additions (`service_env`)."""
     if kb_url is not None:
         from client import CpkbClient, CpkbError
 
@@ -164,7 +221,11 @@ def knowledge_service(
     with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp, contextlib.ExitStack() as stack:
         try:
             url = stack.enter_context(
-                embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}", planner_cores=planner_cores)
+                embedded_service(
+                    f"sqlite:///{Path(tmp) / 'bench.db'}",
+                    planner_cores=planner_cores,
+                    env=dict(env or {}),
+                )
             )
         except EmbeddedServiceError as exc:
             raise ValueError(str(exc)) from None
@@ -245,10 +306,16 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
     scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
     spare = settings.service_cores == "spare"
+    cores = run_cores(settings.cores) if settings.cores is not None else ()
     service = (
         contextlib.nullcontext(None)
         if everything_done  # no service to start just to skip every run
-        else knowledge_service(settings.kb_url, settings.token, settings.workers if spare else 0)
+        else knowledge_service(
+            settings.kb_url,
+            settings.token,
+            settings.workers if spare else 0,
+            service_env(cores) if cores else None,
+        )
     )
     pool = None
     embedded = settings.kb_url is None and settings.ray_address is None
@@ -278,6 +345,8 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             mixed=settings.mixed,
             pool=pool,
             service=embedded_settings if embedded else {},
+            cores=cores,
+            portfolio=portfolio_methods(settings) if cores else (),
         )
 
 

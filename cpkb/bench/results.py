@@ -31,6 +31,7 @@ PINNED_DEFAULTS: Mapping[str, Any] = {
     "concurrent": 1,
     "mixed": False,
     "service": {},
+    "cores": None,
 }
 """A setting a directory made before it was pinned holds at this value."""
 

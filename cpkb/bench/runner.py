@@ -26,14 +26,17 @@ import threading
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.managers import SyncManager
 from pathlib import Path
 from typing import Any, Protocol
 
+from cpkb.bench.clocks import clock_fields
+from cpkb.bench.portfolio import Portfolio
 from cpkb.bench.results import ResultStore
 from cpkb.bench.scenarios import Scenario
+from server.cpus import pin_process
 from server.lifeline import exit_with_parent
 
 RunFn = Callable[..., Any]
@@ -95,6 +98,10 @@ class Job:
     predecessor_kwargs: Mapping[str, Any] = field(default_factory=dict)
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     group: Group | None = None
+    # With `cores`, the run's cores: the planner takes the first, a portfolio of `trees`
+    # trees one each (`cpkb.bench.portfolio`).
+    cores: tuple[int, ...] = ()
+    trees: int = 1
 
     @property
     def kb_name(self) -> str:
@@ -117,7 +124,8 @@ class BenchOutcome:
     error_messages: list[str] = field(default_factory=list)
 
 
-def _as_dict(result: Any) -> dict[str, Any]:
+def as_record(result: Any) -> dict[str, Any]:
+    """A run function's result as a record, checked for the fields every run has."""
     if hasattr(result, "to_json"):
         result = result.to_json()
     if isinstance(result, str | bytes):
@@ -133,13 +141,16 @@ def _as_dict(result: Any) -> dict[str, Any]:
     return out
 
 
-def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> dict[str, Any]:
+def _call(
+    job: Job, task: str, method: str, max_rollouts: int, trees: int = 1, **extra: Any
+) -> dict[str, Any]:
     kb_url = job.kb_service.url if job.kb_service is not None else None
     kb = job.kb_name if job.kb_service is not None else None
     config = {**job.config, **dict(job.scenario.overrides)}
     if config:
         extra = {"config": config, **extra}
-    result = job.run_fn(
+    run_fn = Portfolio(job.run_fn, trees, job.cores[:trees]) if trees > 1 else job.run_fn
+    result = run_fn(
         task,
         method,
         job.scenario.seed,
@@ -149,7 +160,7 @@ def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> 
         quiet=True,
         **extra,
     )
-    return _as_dict(result)
+    return as_record(result)
 
 
 def execute(job: Job) -> tuple[bool, dict[str, Any]]:
@@ -158,6 +169,8 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
     started = time.perf_counter()
     created = False
     together = None
+    if job.cores:
+        pin_process(frozenset(job.cores[:1]))
     try:
         if job.group is not None:
             together = _start_together(job.group)
@@ -185,7 +198,7 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
         fit_wait_s = 0.0
         if predecessors and job.kb_service is not None:
             fit_wait_s = job.kb_service.wait_fitted(job.kb_name)
-        record = _call(job, s.task, s.sampler, job.max_rollouts)
+        record = _call(job, s.task, s.sampler, job.max_rollouts, job.trees)
         record.pop("bindings_detail", None)
         record.update(
             task=s.task,
@@ -200,7 +213,9 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             fit_wait_s=fit_wait_s,
             scenario_wall_s=time.perf_counter() - started,
             worker_pid=os.getpid(),
+            cores=len(job.cores) or None,
         )
+        record.update(clock_fields(record))
         if job.group is not None:
             record.update(
                 group=job.group.kb_name,
@@ -346,6 +361,8 @@ def run_bench(
     mixed: bool = False,
     pool: RunPool | None = None,
     service: Mapping[str, Any] | None = None,
+    cores: Sequence[int] = (),
+    portfolio: Collection[str] = (),
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
@@ -354,6 +371,8 @@ def run_bench(
     of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers);
     `mixed`: N runs of different tasks at a time instead (pinned).
     `pool`: where the runs go (default: a local pool of `workers` processes).
+    `cores`: the cores each run gets (pinned; `cpkb bench --cores`): the planner runs on the
+    first, and the methods in `portfolio` run as a portfolio of one tree per core.
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
     recorded; a rerun with the same `out_dir` picks up exactly where this one stopped.
@@ -378,6 +397,7 @@ def run_bench(
             "concurrent": concurrent,
             "mixed": mixed,
             "service": dict(service or {}),
+            "cores": len(cores) or None,
         }
     )
     pending = store.pending(list(scenarios))
@@ -414,6 +434,8 @@ def run_bench(
                 dict(predecessor_kwargs or {}),
                 dict(config or {}),
                 group,
+                tuple(cores),
+                len(cores) if cores and s.method in portfolio else 1,
             )
             for s in members
         ]

@@ -84,7 +84,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "block of seeds adds to the same --out",
     )
     parser.add_argument(
-        "--workers", type=positive_int, default=os.cpu_count() or 1, help="worker processes"
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes (default: the machine's cores; 1 with --cores)",
+    )
+    parser.add_argument(
+        "--cores",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="every method gets N cores in all, one run at a time (pinned; Linux): a guided "
+        "method's planner one and its embedded service the others (with N=1, the planner's "
+        "own), a method without knowledge N trees at once, the first binding winning and "
+        "the rollouts summed over the trees; recorded with the results; default: cores are "
+        "not counted",
     )
     parser.add_argument(
         "--concurrent",
@@ -223,7 +237,7 @@ def handle(args: argparse.Namespace) -> int:
         tasks=suite_tasks(args.tasks),
         methods=args.methods,
         seeds=range(args.first_seed, args.first_seed + args.seeds),
-        workers=args.workers,
+        workers=args.workers or (1 if args.cores else os.cpu_count() or 1),
         out_dir=args.out,
         kb_url=args.kb_url,
         token=token,
@@ -240,6 +254,7 @@ def handle(args: argparse.Namespace) -> int:
         variants=bench_variants(args.variants),
         ray_address=args.ray,
         service_cores=args.service_cores,
+        cores=args.cores,
     )
     try:
         if args.kb_url is not None and not args.summary_only:
