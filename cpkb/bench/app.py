@@ -22,6 +22,8 @@ from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, RunFn, run_bench
 from cpkb.bench.scenarios import (
+    BASELINE_METHOD,
+    PAPER_BASELINE_METHOD,
     TRANSFER_METHODS,
     expand,
     method_run,
@@ -29,7 +31,8 @@ from cpkb.bench.scenarios import (
     task_kinds,
 )
 from cpkb.bench.stats import (
-    HEADERS,
+    headers,
+    notes,
     summarize,
     summarize_by_kind,
     table_rows,
@@ -235,17 +238,25 @@ def knowledge_service(
 def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> None:
     """Rebuild the summary table and plots from everything in `out_dir`."""
     records = ResultStore(out_dir).records()
-    rows = summarize(records, settings.tasks, settings.methods)
-    paths = write_summary(rows, out_dir)
     kinds = task_kinds({r["task"] for r in records})
-    if len(kinds) > len(set(kinds.values())):
-        by_kind = summarize_by_kind(records, kinds, settings.methods)
-        paths += write_summary(by_kind, out_dir, name="summary_by_kind")
+    methods = {r["method"] for r in records}
+    # Against the strongest baseline; against the paper's too where it ran (its figures).
+    paths: list[Path] = []
+    for baseline, suffix in ((BASELINE_METHOD, ""), (PAPER_BASELINE_METHOD, "_paper")):
+        if suffix and baseline not in methods:
+            continue
+        rows = summarize(records, settings.tasks, settings.methods, baseline)
+        paths += write_summary(rows, out_dir, f"summary{suffix}", baseline)
+        if len(kinds) > len(set(kinds.values())):
+            by_kind = summarize_by_kind(records, kinds, settings.methods, baseline)
+            paths += write_summary(by_kind, out_dir, f"summary_by_kind{suffix}", baseline)
+        if not suffix:
+            table = Table(*headers(baseline), title=f"cpkb bench: {len(records)} runs in {out_dir}")
+            for cells in table_rows(rows):
+                table.add_row(*cells)
+            console.print(table)
+            console.print(notes(baseline))
     paths += write_plots(records, out_dir, settings.tasks, settings.methods)
-    table = Table(*HEADERS, title=f"cpkb bench: {len(records)} runs in {out_dir}")
-    for cells in table_rows(rows):
-        table.add_row(*cells)
-    console.print(table)
     if settings.concurrent > 1:
         paths += _report_together(records, settings, console)
     console.print("wrote " + ", ".join(str(p) for p in paths))
