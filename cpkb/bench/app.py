@@ -332,7 +332,9 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
     embedded = settings.kb_url is None and settings.ray_address is None
     # What the embedded service ran with, pinned with the results: its settings away from their
     # defaults, and where it ran when not on shared cores.
-    embedded_settings = surrogate_overrides() | ({"cpu_cores": "spare"} if spare else {})
+    embedded_settings = surrogate_overrides() | (
+        {"cpu_cores": "spare"} if spare and not cores else {}  # `--cores` is pinned apart
+    )
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import RayPool, WorkerKbs
 
