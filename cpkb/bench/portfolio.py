@@ -95,8 +95,7 @@ class Portfolio:
                         str(Path(tmp) / f"tree{i}.progress"),
                         str(Path(tmp) / f"tree{i}.json"),
                         os.getpid(),
-                    ),
-                    Path(tmp) / f"tree{i}.err",
+                    )
                 )
                 for i, tree_seed in enumerate(seeds)
             ]
@@ -112,10 +111,14 @@ class Portfolio:
         return _combined(results, winner, counts, seeds, list(self.cores))
 
 
-def _start(job: TreeJob, stderr_path: Path) -> tuple[subprocess.Popen[bytes], TreeJob]:
+def _stderr_path(job: TreeJob) -> Path:
+    return Path(job.result_path).with_suffix(".err")
+
+
+def _start(job: TreeJob) -> tuple[subprocess.Popen[bytes], TreeJob]:
     # The tree imports what the bench's own process could (a test's run function too).
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    with stderr_path.open("wb") as stderr:
+    with _stderr_path(job).open("wb") as stderr:
         process = subprocess.Popen(
             [sys.executable, "-m", "cpkb.bench.portfolio"],
             stdin=subprocess.PIPE,
@@ -142,7 +145,7 @@ def _race(
             process, job = trees[i]
             path = Path(job.result_path)
             if process.returncode != 0 or not path.exists():
-                stderr = Path(job.result_path).with_suffix(".err").read_text(errors="replace")
+                stderr = _stderr_path(job).read_text(errors="replace")
                 last = stderr.strip().splitlines()[-1:] or [f"exit status {process.returncode}"]
                 raise RuntimeError(f"portfolio tree {i} (seed {job.seed}) failed: {last[0]}")
             results[i] = json.loads(path.read_text(encoding="utf-8"))
