@@ -44,8 +44,9 @@ def test_the_first_binding_wins_and_the_stopped_trees_count_what_they_ran(tmp_pa
     assert result["portfolio"]["winner"] == 0
     assert result["portfolio"]["rollouts"] == [alone["rollouts"], 0, 0]
     assert result["rollouts"] == alone["rollouts"]
-    assert sorted(c["seed"] for c in _calls(log)[:3]) == sorted(seeds)
-    assert {c["max_rollouts"] for c in _calls(log)[:3]} == {100}  # the cap shared out
+    trees = _calls(log)[:-1]  # those that got to start before tree 0 won; the last: alone
+    assert 7 in {c["seed"] for c in trees} and {c["seed"] for c in trees} <= set(seeds)
+    assert {c["max_rollouts"] for c in trees} == {100}  # the cap shared out
 
 
 def test_racing_trees_sum_the_winners_rollouts_and_every_others(tmp_path: Path):
@@ -137,8 +138,16 @@ def test_a_cores_bench_pins_the_planner_and_each_tree_to_its_core(tmp_path: Path
     assert {r["cores"] for r in records.values()} == {2}
     calls = _calls(log)
     assert {tuple(c["cpus"]) for c in calls if c["method"] == "cp-bo"} == {cores[:1]}
+    # Each tree that got to start ran on its own core (a tree may be stopped before it
+    # starts: the toy's winner can finish first); the winner always started.
+    tree_core = {
+        seed: core for run in range(2) for seed, core in zip(tree_seeds(run, 2), cores, strict=True)
+    }
     tree_cpus = {c["seed"]: c["cpus"] for c in calls if c["method"] == "quasi-random"}
-    assert {tuple(tree_cpus[s]) for s in tree_seeds(0, 2)} == {(cores[0],), (cores[1],)}
+    assert all(cpus == [tree_core[seed]] for seed, cpus in tree_cpus.items())
+    for seed in range(2):
+        tree = records[("quasi-random", seed)]["portfolio"]
+        assert tree["seeds"][tree["winner"]] in tree_cpus
     pinned = json.loads((tmp_path / "out" / "bench.json").read_text())["cores"]
     assert pinned == 2
 
