@@ -9,7 +9,10 @@ the CPU time the process's background threads took where recorded) and,
 against the baseline, the wall ratio, the rollout reduction reached and the reduction at which
 the wall times would be level (1 - the baseline's cost per rollout over the method's, both as
 mean wall over mean rollouts). Report wall times of runs made with
-`--workers 1` only; `--seeds` picks them out of a joined directory.
+`--workers 1` only; `--seeds` picks them out of a joined directory. The baseline is the
+strongest search without learning unless `--baseline` names another; `--clock cold` reads each
+run's cold clock (its predecessors' runs and the wait for their fits added, shown as their own
+part), `warm` (default) the target's run alone (`cpkb.bench.clocks`).
 
     .venv/bin/python benchmarks/wall.py benchmarks/results/heldout23 --seeds 8400-8404
 """
@@ -24,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from cpkb.bench.clocks import CLOCKS, Clock, clock_s
 from cpkb.bench.results import ResultStore
-from cpkb.bench.scenarios import seed_range, task_kinds
+from cpkb.bench.scenarios import BASELINE_METHOD, seed_range, task_kinds
 from cpkb.bench.stats import ordered, rollouts_metric
 
 
@@ -41,10 +45,11 @@ class Cell:
     requests: float
     suggest_cpu_s: float | None = None  # None: runs from before `suggest_cpu_s` was recorded
     background_cpu_s: float | None = None  # None: runs from before it was recorded
+    predecessor_s: float = 0.0  # on the cold clock: the predecessors' runs and their fits
 
     @property
     def rest_s(self) -> float:
-        return self.wall_s - self.sim_s - self.suggest_s
+        return self.wall_s - self.sim_s - self.suggest_s - self.predecessor_s
 
     @property
     def per_rollout_s(self) -> float:
@@ -77,8 +82,8 @@ def _mean_of(records: list[dict], key: str) -> float | None:
     return float(np.mean([r[key] for r in records]))
 
 
-def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
-    """(kind, method) -> its means; "all" pools the kinds."""
+def cells(records: list[dict], clock: Clock = "warm") -> dict[tuple[str, str], Cell]:
+    """(kind, method) -> its means on `clock`; "all" pools the kinds."""
     grouped: dict[tuple[str, str], list[dict]] = defaultdict(list)
     kinds = task_kinds({str(r["task"]) for r in records})
     for record in records:
@@ -88,13 +93,14 @@ def cells(records: list[dict]) -> dict[tuple[str, str], Cell]:
     return {
         key: Cell(
             runs=len(found),
-            wall_s=float(np.mean([r["wall_s"] for r in found])),
+            wall_s=float(np.mean([clock_s(r, clock) for r in found])),
             rollouts=float(np.mean([rollouts_metric(r) for r in found])),
             sim_s=float(np.mean([r["sim_s"] for r in found])),
             suggest_s=float(np.mean([_suggest_s(r) for r in found])),
             requests=float(np.mean([r.get("suggestions", 0) for r in found])),
             suggest_cpu_s=_mean_of(found, "suggest_cpu_s"),
             background_cpu_s=_mean_of(found, "background_cpu_s"),
+            predecessor_s=float(np.mean([clock_s(r, clock) - r["wall_s"] for r in found])),
         )
         for key, found in grouped.items()
     }
@@ -125,6 +131,8 @@ def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
             rest = f"{cell.rest_s:.2f} s" + (
                 f" (background CPU {background:.3f} s)" if background else ""
             )
+            if cell.predecessor_s:
+                rest += f" + predecessors and their fits {cell.predecessor_s:.2f} s"
             lines.append(
                 f"| {kind} | {method} | {cell.runs} | {cell.wall_s:.2f} s | {cell.rollouts:.1f} "
                 f"| {cell.sim_s:.2f} s | {cell.suggest_s:.2f} s ({cell.requests:.1f} x {cost}) "
@@ -137,7 +145,10 @@ def table(found: dict[tuple[str, str], Cell], baseline: str) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path, help="a bench's --out directory")
-    parser.add_argument("--baseline", default="quasi-random", help="(default quasi-random)")
+    parser.add_argument("--baseline", default=BASELINE_METHOD, help=f"(default {BASELINE_METHOD})")
+    parser.add_argument(
+        "--clock", choices=CLOCKS, default="warm", help="the wall clock read (default warm)"
+    )
     parser.add_argument("--seeds", type=seed_range, help="only these seeds, e.g. 8000-8004")
     args = parser.parse_args(argv)
     records = ResultStore(args.results).records()
@@ -146,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     if not records:
         print(f"no runs in {args.results} for those seeds", file=sys.stderr)
         return 2
-    print("\n".join(table(cells(records), args.baseline)))
+    print("\n".join(table(cells(records, args.clock), args.baseline)))
     return 0
 
 

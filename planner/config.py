@@ -105,8 +105,13 @@ class SearchConfig:
     the body but can never place it); a fresh tree opens its first children with every failure
     learned so far. Luby's schedule is within a log factor of the best fixed schedule whatever
     the distribution of run lengths. Only a sampler whose knowledge outlives the tree restarts
-    (cp-bo; `Sampler.keeps_knowledge`): quasi-random keeps nothing, and restarted it took more
-    rollouts. 0: one tree for the whole run (the paper, and `cp-bo-paper`)."""
+    (cp-bo; `Sampler.keeps_knowledge`), unless `restart_without_knowledge`. 0: one tree for
+    the whole run (the paper, and `cp-bo-paper`)."""
+    restart_without_knowledge: bool = False
+    """Restart (and redraw, with `restart_redraws`) a sampler that keeps nothing beyond the
+    tree too, such as quasi-random: the strongest search without learning, the baseline every
+    claim is made against (`quasi-random-restarts`). Off: only a sampler that keeps knowledge
+    restarts, and quasi-random is the paper's one tree."""
     restart_schedule: str = "luby"
     """`luby`, or `geometric`: each tree gets twice the rollouts of the one before (1, 2, 4, ...
     units), so a task that needs one long tree loses at most the rollouts spent before it, at
@@ -478,6 +483,7 @@ class Preset:
 
 
 PRESETS: Mapping[str, Preset] = {
+    "quasi-random-restarts": Preset("quasi-random", {"search.restart_without_knowledge": True}),
     "cp-bo-paper": Preset(
         "cp-bo",
         {
@@ -509,8 +515,9 @@ PRESETS: Mapping[str, Preset] = {
         },
     ),
 }
-"""The paper's CP-BO changes only SAMPLE-NEW-CHILD: types activate when a failure is met, and
-the tree is plain PW-UCT."""
+"""`quasi-random-restarts` is quasi-random given cp-bo's restarts and redraws, nothing else
+changed: the strongest baseline without learning. The paper's CP-BO changes only
+SAMPLE-NEW-CHILD: types activate when a failure is met, and the tree is plain PW-UCT."""
 
 
 def base_method(method: str) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import sys
 import tempfile
 import time
@@ -21,17 +22,27 @@ from cpkb.bench.progress import RichProgress
 from cpkb.bench.results import ResultStore
 from cpkb.bench.runner import BenchOutcome, KbService, RunFn, run_bench
 from cpkb.bench.scenarios import (
+    BASELINE_METHOD,
+    PAPER_BASELINE_METHOD,
     TRANSFER_METHODS,
     expand,
     method_run,
     predecessors,
     task_kinds,
 )
-from cpkb.bench.stats import HEADERS, summarize, summarize_by_kind, table_rows, write_summary
+from cpkb.bench.stats import (
+    headers,
+    notes,
+    summarize,
+    summarize_by_kind,
+    table_rows,
+    write_summary,
+)
 from cpkb.bench.together import HEADERS as TOGETHER_HEADERS
 from cpkb.bench.together import GroupCheck, summarize_together, write_together
 from cpkb.bench.together import table_rows as together_rows
 from cpkb.bench.variants import Variant
+from server.cpus import format_cpu_list
 from server.settings import surrogate_overrides
 
 
@@ -60,6 +71,10 @@ class BenchSettings:
     # The embedded service on the cores the workers leave (`spare`, where there are any) or on
     # any core at a lower priority (`shared`).
     service_cores: Literal["spare", "shared"] = "spare"
+    # Every method gets this many cores in all (`--cores`): a guided method's planner one and
+    # its embedded service the others (or the planner's, with one); a method without knowledge
+    # runs that many trees at once (`cpkb.bench.portfolio`). None: the cores are not counted.
+    cores: int | None = None
 
 
 def plan_run(
@@ -97,8 +112,49 @@ def _is_task_file(task: str) -> bool:
     return "/" in task or task.endswith((".yaml", ".yml"))
 
 
+def run_cores(cores: int) -> tuple[int, ...]:
+    """The cores of a `--cores` run: the first `cores` this process may use."""
+    allowed = sorted(os.sched_getaffinity(0))
+    if cores > len(allowed):
+        raise ValueError(f"--cores {cores}: this bench may use only {len(allowed)} cores")
+    return tuple(allowed[:cores])
+
+
+def service_env(cores: Sequence[int]) -> dict[str, str]:
+    """Where a `--cores` run's embedded service runs: on the cores its planner leaves, or on
+    the planner's own core when it has only one (the service counts among the run's cores)."""
+    return {"CPKB_CPU_CORES": format_cpu_list(set(cores[1:] or cores))}
+
+
+def portfolio_methods(settings: BenchSettings) -> set[str]:
+    """The methods that run as a portfolio on `--cores`: those that use no knowledge base."""
+    from planner.search.samplers import uses_knowledge
+
+    runs = {method: method_run(method, settings.variants) for method in settings.methods}
+    samplers = {method: TRANSFER_METHODS.get(run, run) for method, run in runs.items()}
+    return {method for method, sampler in samplers.items() if not uses_knowledge(sampler)}
+
+
+def _check_cores(settings: BenchSettings) -> None:
+    """`--cores` counts every core a run uses: one run at a time, the bench's own service."""
+    if settings.cores is None:
+        return
+    if settings.workers != 1:
+        raise ValueError("--cores N gives one run N cores at a time: use --workers 1")
+    if settings.kb_url is not None or settings.ray_address is not None:
+        raise ValueError("--cores counts the embedded service's cores: not with --kb-url or --ray")
+    if settings.concurrent > 1:
+        raise ValueError("--cores gives one run its cores: not with --concurrent")
+    if settings.service_cores != "spare":
+        raise ValueError("--cores places the service itself: not with --service-cores shared")
+    if not hasattr(os, "sched_getaffinity"):
+        raise ValueError("--cores pins processes to cores, which this platform cannot")
+    run_cores(settings.cores)
+
+
 def check_request(settings: BenchSettings) -> None:
     """Name the unknown task or method before any worker starts."""
+    _check_cores(settings)
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import require_ray
 
@@ -145,11 +201,15 @@ def _check_mixed(settings: BenchSettings) -> None:
 
 @contextlib.contextmanager
 def knowledge_service(
-    kb_url: str | None, token: str | None, planner_cores: int = 0
+    kb_url: str | None,
+    token: str | None,
+    planner_cores: int = 0,
+    env: Mapping[str, str] | None = None,
 ) -> Iterator[ServiceKbs]:
     """The shared service if given; else one embedded service on a temporary SQLite file for
     the whole bench (each scenario still gets its own knowledge base, deleted after it), off
-    the first `planner_cores` cores (`cpkb.embedded.embedded_service`)."""
+    the first `planner_cores` cores (`cpkb.embedded.embedded_service`); `env`: its
+    environment's additions (`service_env`)."""
     if kb_url is not None:
         from client import CpkbClient, CpkbError
 
@@ -165,7 +225,11 @@ def knowledge_service(
     with tempfile.TemporaryDirectory(prefix="cpkb-bench-") as tmp, contextlib.ExitStack() as stack:
         try:
             url = stack.enter_context(
-                embedded_service(f"sqlite:///{Path(tmp) / 'bench.db'}", planner_cores=planner_cores)
+                embedded_service(
+                    f"sqlite:///{Path(tmp) / 'bench.db'}",
+                    planner_cores=planner_cores,
+                    env=dict(env or {}),
+                )
             )
         except EmbeddedServiceError as exc:
             raise ValueError(str(exc)) from None
@@ -175,17 +239,25 @@ def knowledge_service(
 def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> None:
     """Rebuild the summary table and plots from everything in `out_dir`."""
     records = ResultStore(out_dir).records()
-    rows = summarize(records, settings.tasks, settings.methods)
-    paths = write_summary(rows, out_dir)
     kinds = task_kinds({r["task"] for r in records})
-    if len(kinds) > len(set(kinds.values())):
-        by_kind = summarize_by_kind(records, kinds, settings.methods)
-        paths += write_summary(by_kind, out_dir, name="summary_by_kind")
+    methods = {r["method"] for r in records}
+    # Against the strongest baseline; against the paper's too where it ran (its figures).
+    paths: list[Path] = []
+    for baseline, suffix in ((BASELINE_METHOD, ""), (PAPER_BASELINE_METHOD, "_paper")):
+        if suffix and baseline not in methods:
+            continue
+        rows = summarize(records, settings.tasks, settings.methods, baseline)
+        paths += write_summary(rows, out_dir, f"summary{suffix}", baseline)
+        if len(kinds) > len(set(kinds.values())):
+            by_kind = summarize_by_kind(records, kinds, settings.methods, baseline)
+            paths += write_summary(by_kind, out_dir, f"summary_by_kind{suffix}", baseline)
+        if not suffix:
+            table = Table(*headers(baseline), title=f"cpkb bench: {len(records)} runs in {out_dir}")
+            for cells in table_rows(rows):
+                table.add_row(*cells)
+            console.print(table)
+            console.print(notes(baseline))
     paths += write_plots(records, out_dir, settings.tasks, settings.methods)
-    table = Table(*HEADERS, title=f"cpkb bench: {len(records)} runs in {out_dir}")
-    for cells in table_rows(rows):
-        table.add_row(*cells)
-    console.print(table)
     if settings.concurrent > 1:
         paths += _report_together(records, settings, console)
     console.print("wrote " + ", ".join(str(p) for p in paths))
@@ -246,16 +318,24 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
     scenarios = expand(settings.tasks, settings.methods, settings.seeds, settings.variants)
     everything_done = not ResultStore(settings.out_dir).pending(scenarios)
     spare = settings.service_cores == "spare"
+    cores = run_cores(settings.cores) if settings.cores is not None else ()
     service: contextlib.AbstractContextManager[KbService | None] = (
         contextlib.nullcontext(None)
         if everything_done  # no service to start just to skip every run
-        else knowledge_service(settings.kb_url, settings.token, settings.workers if spare else 0)
+        else knowledge_service(
+            settings.kb_url,
+            settings.token,
+            settings.workers if spare else 0,
+            service_env(cores) if cores else None,
+        )
     )
     pool = None
     embedded = settings.kb_url is None and settings.ray_address is None
     # What the embedded service ran with, pinned with the results: its settings away from their
     # defaults, and where it ran when not on shared cores.
-    embedded_settings = surrogate_overrides() | ({"cpu_cores": "spare"} if spare else {})
+    embedded_settings = surrogate_overrides() | (
+        {"cpu_cores": "spare"} if spare and not cores else {}  # `--cores` is pinned apart
+    )
     if settings.ray_address is not None:
         from cpkb.bench.ray_pool import RayPool, WorkerKbs
 
@@ -280,6 +360,8 @@ def _execute(settings: BenchSettings, run_fn: RunFn, console: Console) -> BenchO
             mixed=settings.mixed,
             pool=pool,
             service=embedded_settings if embedded else {},
+            cores=cores,
+            portfolio=portfolio_methods(settings) if cores else (),
         )
 
 

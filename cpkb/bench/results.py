@@ -32,6 +32,7 @@ PINNED_DEFAULTS: Mapping[str, Any] = {
     "mixed": False,
     "service": {},
     "time_budget_s": None,
+    "cores": None,
 }
 """A setting a directory made before it was pinned holds at this value."""
 

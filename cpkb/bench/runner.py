@@ -26,14 +26,18 @@ import threading
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.managers import SyncManager
 from pathlib import Path
 from typing import Any, Protocol
 
+from cpkb.bench.clocks import clock_fields
+from cpkb.bench.portfolio import Portfolio
+from cpkb.bench.records import as_record
 from cpkb.bench.results import ResultStore
 from cpkb.bench.scenarios import Scenario
+from server.cpus import pin_process
 from server.lifeline import exit_with_parent
 
 RunFn = Callable[..., Any]
@@ -41,7 +45,6 @@ RunFn = Callable[..., Any]
 `to_json()` (dict or JSON text) or a mapping, holding at least `solved`, `rollouts`, `wall_s`.
 With planner knobs set, `extra` has `config`: their dotted overrides (`planner.config`)."""
 
-REQUIRED_FIELDS = ("solved", "rollouts", "wall_s")
 KB_NAME_MAX = 64
 START_TOGETHER_S = 600.0  # the longest a group's run waits for the rest to start
 
@@ -97,6 +100,10 @@ class Job:
     predecessor_kwargs: Mapping[str, Any] = field(default_factory=dict)
     config: Mapping[str, Any] = field(default_factory=dict)  # dotted planner overrides
     group: Group | None = None
+    # With `cores`, the run's cores: the planner takes the first, a portfolio of `trees`
+    # trees one each (`cpkb.bench.portfolio`).
+    cores: tuple[int, ...] = ()
+    trees: int = 1
 
     @property
     def kb_name(self) -> str:
@@ -119,29 +126,16 @@ class BenchOutcome:
     error_messages: list[str] = field(default_factory=list)
 
 
-def _as_dict(result: Any) -> dict[str, Any]:
-    if hasattr(result, "to_json"):
-        result = result.to_json()
-    if isinstance(result, str | bytes):
-        import json
-
-        result = json.loads(result)
-    if not isinstance(result, Mapping):
-        raise TypeError(f"the run function returned {type(result).__name__}, not a result")
-    out = dict(result)
-    missing = [k for k in REQUIRED_FIELDS if k not in out]
-    if missing:
-        raise ValueError(f"the run result lacks {', '.join(missing)}")
-    return out
-
-
-def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> dict[str, Any]:
+def _call(
+    job: Job, task: str, method: str, max_rollouts: int, trees: int = 1, **extra: Any
+) -> dict[str, Any]:
     kb_url = job.kb_service.url if job.kb_service is not None else None
     kb = job.kb_name if job.kb_service is not None else None
     config = {**job.config, **dict(job.scenario.overrides)}
     if config:
         extra = {"config": config, **extra}
-    result = job.run_fn(
+    run_fn = Portfolio(job.run_fn, trees, job.cores[:trees]) if trees > 1 else job.run_fn
+    result = run_fn(
         task,
         method,
         job.scenario.seed,
@@ -151,7 +145,7 @@ def _call(job: Job, task: str, method: str, max_rollouts: int, **extra: Any) -> 
         quiet=True,
         **extra,
     )
-    return _as_dict(result)
+    return as_record(result)
 
 
 def execute(job: Job) -> tuple[bool, dict[str, Any]]:
@@ -160,6 +154,8 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
     started = time.perf_counter()
     created = False
     together = None
+    if job.cores:
+        pin_process(frozenset(job.cores[:1]))
     try:
         if job.group is not None:
             together = _start_together(job.group)
@@ -188,7 +184,7 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
         if predecessors and job.kb_service is not None:
             fit_wait_s = job.kb_service.wait_fitted(job.kb_name)
         budget = {} if job.time_budget_s is None else {"time_budget_s": job.time_budget_s}
-        record = _call(job, s.task, s.sampler, job.max_rollouts, **budget)
+        record = _call(job, s.task, s.sampler, job.max_rollouts, job.trees, **budget)
         record.pop("bindings_detail", None)
         record.update(
             task=s.task,
@@ -204,7 +200,9 @@ def execute(job: Job) -> tuple[bool, dict[str, Any]]:
             fit_wait_s=fit_wait_s,
             scenario_wall_s=time.perf_counter() - started,
             worker_pid=os.getpid(),
+            cores=len(job.cores) or None,
         )
+        record.update(clock_fields(record))
         if job.group is not None:
             record.update(
                 group=job.group.kb_name,
@@ -351,6 +349,8 @@ def run_bench(
     mixed: bool = False,
     pool: RunPool | None = None,
     service: Mapping[str, Any] | None = None,
+    cores: Sequence[int] = (),
+    portfolio: Collection[str] = (),
 ) -> BenchOutcome:
     """Run the scenarios not yet finished in `out_dir`, appending each result as it lands.
     `config`: the planner's dotted overrides, for every run (predecessors too); pinned with the
@@ -359,6 +359,8 @@ def run_bench(
     of a cell N at a time on one knowledge base (pinned too; the pool has at least N workers);
     `mixed`: N runs of different tasks at a time instead (pinned).
     `pool`: where the runs go (default: a local pool of `workers` processes).
+    `cores`: the cores each run gets (pinned; `cpkb bench --cores`): the planner runs on the
+    first, and the methods in `portfolio` run as a portfolio of one tree per core.
 
     At the time limit (seconds from this call) the runs in flight are stopped and not
     recorded; a rerun with the same `out_dir` picks up exactly where this one stopped.
@@ -384,6 +386,7 @@ def run_bench(
             "concurrent": concurrent,
             "mixed": mixed,
             "service": dict(service or {}),
+            "cores": len(cores) or None,
         }
     )
     pending = store.pending(list(scenarios))
@@ -421,6 +424,8 @@ def run_bench(
                 dict(predecessor_kwargs or {}),
                 dict(config or {}),
                 group,
+                tuple(cores),
+                len(cores) if cores and s.method in portfolio else 1,
             )
             for s in members
         ]

@@ -1,11 +1,15 @@
-"""The summary table: per (task, method) cell, rollouts and wall time against quasi-random.
+"""The summary table: per (task, method) cell, rollouts and wall time against a baseline.
 
-An unsolved run counts as the rollout cap (also when its search space ran out before the
-cap), as in the paper's Fig. 5, so a cell's mean is a lower bound when its solved rate is
-below 1. Wall time is the time to the first binding. With a budget in seconds
-(`time_budget_s`), as TAMP papers report (eTAMP: success rate and mean seconds per task), a run
-counts as solved only within it and an unsolved run's time as the budget; without one, an
-unsolved run's time is the time it took.
+The baseline is the strongest search without learning (`quasi-random-restarts`) unless a
+summary names the paper's (`quasi-random`, for the comparison with the paper's figures, whose
+reductions are shown beside only then). An unsolved run counts as the rollout cap (also when
+its search space ran out before the cap), as in the paper's Fig. 5, so a cell's mean is a lower
+bound when its solved rate is below 1. Wall time is the time the run took, solved or not, on
+both clocks (`cpkb.bench.clocks`). With a budget in seconds (`time_budget_s`), as TAMP papers
+report (eTAMP: success rate and mean seconds per task), a run counts as solved only within it
+and an unsolved run's time as the budget. A row that pools several targets (a kind, or all of
+them) also gives the clustered interval (`cpkb.bench.clustered`: targets resampled, then seeds)
+and on how many of its targets the method's mean beat the baseline's.
 """
 
 from __future__ import annotations
@@ -22,7 +26,17 @@ from typing import Any
 import numpy as np
 from scipy.stats import mannwhitneyu
 
-from cpkb.bench.scenarios import BASELINE_METHOD, PAPER_REDUCTION_PERCENT, TRANSFER_METHODS
+from cpkb.bench import clustered
+from cpkb.bench.clocks import COUNTS_NOTE, clock_s, predecessor_rollouts
+from cpkb.bench.scenarios import (
+    BASELINE_METHOD,
+    PAPER_BASELINE_METHOD,
+    PAPER_REDUCTION_PERCENT,
+    TRANSFER_METHODS,
+)
+
+ALL_KINDS = "all"
+"""The row of a by-kind summary that pools every kind."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +60,13 @@ class CellSummary:
     wall_p_value: float | None
     paper_reduction_pct: float | None
     kb_error_runs: int = 0
+    baseline: str = BASELINE_METHOD
+    targets: int = 1
+    reduction_ci_targets: tuple[float, float] | None = None  # clustered: targets resampled
+    beats: tuple[int, int] | None = None  # targets where its mean beat the baseline's, of all
+    wall_cold_mean_s: float = 0.0  # the cold clock: predecessors and their fits included
+    predecessor_rollouts_mean: float = 0.0  # beside `rollouts_mean`, never in it
+    predecessor_s_mean: float = 0.0  # the predecessors' runs and the wait for their fits
 
 
 def ordered(values: Iterable[str], preferred: Sequence[str]) -> list[str]:
@@ -106,18 +127,34 @@ def rollouts_metric(record: Mapping[str, Any]) -> float:
     return float(max(record["rollouts"], record.get("max_rollouts", record["rollouts"])))
 
 
+def _by_target(
+    runs: Sequence[Mapping[str, Any]], base: Sequence[Mapping[str, Any]]
+) -> list[clustered.Target]:
+    """The baseline's and the method's rollouts per target both ran (a record's `target`, set
+    where a row pools targets, else its task)."""
+    split: dict[str, tuple[list[float], list[float]]] = {}
+    for arm, records in enumerate((base, runs)):
+        for r in records:
+            split.setdefault(str(r.get("target", r["task"])), ([], []))[arm].append(
+                rollouts_metric(r)
+            )
+    return [(np.array(a), np.array(b)) for _, (a, b) in sorted(split.items()) if a and b]
+
+
 def summarize(
     records: Iterable[Mapping[str, Any]],
     tasks: Sequence[str] = (),
     methods: Sequence[str] = (),
+    baseline: str = BASELINE_METHOD,
 ) -> list[CellSummary]:
-    """One row per (task, method) present in `records`, in the given order first."""
+    """One row per (task, method) present in `records`, in the given order first, against
+    `baseline` (the paper's figures beside only against the paper's baseline)."""
     cells: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for r in records:
         cells.setdefault((r["task"], r["method"]), []).append(r)
     rows = []
     for task in ordered((t for t, _ in cells), tasks):
-        base = cells.get((task, BASELINE_METHOD), [])
+        base = cells.get((task, baseline), [])
         base_roll = np.array([rollouts_metric(r) for r in base])
         base_wall = np.array([time_metric(r) for r in base])
         task_methods = (m for t, m in cells if t == task)
@@ -125,7 +162,9 @@ def summarize(
             runs = cells[(task, method)]
             roll = np.array([rollouts_metric(r) for r in runs])
             wall = np.array([time_metric(r) for r in runs])
-            vs_base = method != BASELINE_METHOD and len(base) > 0
+            vs_base = method != baseline and len(base) > 0
+            targets = _by_target(runs, base) if vs_base else []
+            pooled = len({r.get("target", r["task"]) for r in runs}) > 1
             rows.append(
                 CellSummary(
                     task=task,
@@ -148,9 +187,20 @@ def summarize(
                     else None,
                     wall_p_value=_p_value(wall, base_wall) if vs_base else None,
                     paper_reduction_pct=PAPER_REDUCTION_PERCENT.get(task)
-                    if method in TRANSFER_METHODS
+                    if method in TRANSFER_METHODS and baseline == PAPER_BASELINE_METHOD
                     else None,
                     kb_error_runs=sum(1 for r in runs if r.get("kb_errors")),
+                    baseline=baseline,
+                    targets=len({r.get("target", r["task"]) for r in runs}),
+                    reduction_ci_targets=clustered.reduction_ci(targets) if pooled else None,
+                    beats=clustered.beats(targets) if pooled and targets else None,
+                    wall_cold_mean_s=float(np.mean([clock_s(r, "cold") for r in runs])),
+                    predecessor_rollouts_mean=float(
+                        np.mean([predecessor_rollouts(r) for r in runs])
+                    ),
+                    predecessor_s_mean=float(
+                        np.mean([clock_s(r, "cold") - clock_s(r, "warm") for r in runs])
+                    ),
                 )
             )
     return rows
@@ -160,12 +210,17 @@ def summarize_by_kind(
     records: Iterable[Mapping[str, Any]],
     kinds: Mapping[str, str],
     methods: Sequence[str] = (),
+    baseline: str = BASELINE_METHOD,
 ) -> list[CellSummary]:
-    """One row per (task kind, method), pooling every task of a kind (`kinds`: task -> kind):
-    a generated suite is judged by kind, each kind's targets and seeds together, since one
-    target's handful of seeds says little."""
-    pooled = [{**r, "task": kinds[r["task"]]} for r in records if r["task"] in kinds]
-    rows = summarize(pooled, sorted(set(kinds.values())), methods)
+    """One row per (task kind, method), pooling every task of a kind (`kinds`: task -> kind),
+    then per method a row of every kind (`all`): a generated suite is judged by kind, each
+    kind's targets and seeds together, since one target's handful of seeds says little."""
+    pooled = [
+        {**r, "task": kinds[r["task"]], "target": r["task"]} for r in records if r["task"] in kinds
+    ]
+    everything = [{**r, "task": ALL_KINDS} for r in pooled]
+    order = [*sorted(set(kinds.values())), ALL_KINDS]
+    rows = summarize(pooled + everything, order, methods, baseline)
     # The paper's figures are for its own tasks, not for a kind of generated ones.
     return [dataclasses.replace(row, paper_reduction_pct=None) for row in rows]
 
@@ -184,28 +239,35 @@ def _fmt_p(p: float | None) -> str:
     return f"{p:.1e}" if p < 1e-3 else f"{p:.3f}"
 
 
-HEADERS = (
-    "task",
-    "method",
-    "n",
-    "solved",
-    "rollouts mean ± sd",
-    "median",
-    "reduction vs QR",
-    "95% CI",
-    "median reduction",
-    "paper",
-    "p (MWU)",
-    "wall mean",
-    "wall median",
-    "wall reduction",
-    "wall p",
-    "KB errors",
-)
+def headers(baseline: str = BASELINE_METHOD) -> tuple[str, ...]:
+    """The table's column names, the baseline named in them."""
+    return (
+        "task",
+        "method",
+        "n",
+        "solved",
+        "rollouts mean ± sd",
+        "median",
+        f"reduction vs {baseline}",
+        "95% CI (runs)",
+        "95% CI (targets)",
+        "beats on",
+        "median reduction",
+        "paper",
+        "p (MWU)",
+        "predecessor rollouts",
+        "wall warm mean",
+        "wall median",
+        "wall reduction",
+        "wall p",
+        "predecessor s",
+        "wall cold mean",
+        "KB errors",
+    )
 
 
 def table_rows(rows: Sequence[CellSummary]) -> list[list[str]]:
-    """The summary as display strings, in `HEADERS` order."""
+    """The summary as display strings, in `headers()` order."""
     return [
         [
             r.task,
@@ -216,33 +278,56 @@ def table_rows(rows: Sequence[CellSummary]) -> list[list[str]]:
             f"{r.rollouts_median:g}",
             _fmt(r.reduction_pct, ".1f", "%"),
             _fmt_ci(r.reduction_ci),
+            _fmt_ci(r.reduction_ci_targets),
+            "-" if r.beats is None else f"{r.beats[0]}/{r.beats[1]}",
             _fmt(r.median_reduction_pct, ".1f", "%"),
             _fmt(r.paper_reduction_pct, ".2f", "%"),
             _fmt_p(r.p_value),
+            f"{r.predecessor_rollouts_mean:.0f}" if r.predecessor_rollouts_mean else "-",
             f"{r.wall_mean_s:.2f} s",
             f"{r.wall_median_s:.2f} s",
             _fmt(r.wall_reduction_pct, ".1f", "%"),
             _fmt_p(r.wall_p_value),
+            f"{r.predecessor_s_mean:.2f} s" if r.predecessor_s_mean else "-",
+            f"{r.wall_cold_mean_s:.2f} s",
             f"{r.kb_error_runs} runs" if r.kb_error_runs else "-",
         ]
         for r in rows
     ]
 
 
-def markdown_table(rows: Sequence[CellSummary]) -> str:
-    lines = ["| " + " | ".join(HEADERS) + " |", "|" + "---|" * len(HEADERS)]
+def notes(baseline: str = BASELINE_METHOD) -> str:
+    """What the table's counts include and what it is measured against."""
+    against = (
+        "the paper's baseline (one tree, never restarted), for the comparison with its figures"
+        if baseline == PAPER_BASELINE_METHOD
+        else "the strongest search without learning"
+    )
+    return (
+        f"Reductions are against {baseline}, {against}. 95% CI (runs): runs resampled; "
+        "95% CI (targets): targets resampled, then seeds within (rows pooling targets); "
+        f"beats on: targets where the mean is below {baseline}'s. {COUNTS_NOTE}"
+    )
+
+
+def markdown_table(rows: Sequence[CellSummary], baseline: str = BASELINE_METHOD) -> str:
+    names = headers(baseline)
+    lines = ["| " + " | ".join(names) + " |", "|" + "---|" * len(names)]
     lines += ["| " + " | ".join(cells) + " |" for cells in table_rows(rows)]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n\n" + notes(baseline) + "\n"
 
 
 def write_summary(
-    rows: Sequence[CellSummary], out_dir: Path | str, name: str = "summary"
+    rows: Sequence[CellSummary],
+    out_dir: Path | str,
+    name: str = "summary",
+    baseline: str = BASELINE_METHOD,
 ) -> list[Path]:
-    """`summary.md` (the table) and `summary.csv` (full precision)."""
+    """`summary.md` (the table and its notes) and `summary.csv` (full precision)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     md = out / f"{name}.md"
-    md.write_text(markdown_table(rows), encoding="utf-8")
+    md.write_text(markdown_table(rows, baseline), encoding="utf-8")
     path_csv = out / f"{name}.csv"
     fields = list(CellSummary.__dataclass_fields__)
     with path_csv.open("w", newline="", encoding="utf-8") as handle:

@@ -12,7 +12,7 @@ from cpkb.cli.config_args import add_config_arguments, config_overrides
 from cpkb.cli.reach import EXIT_STATUS_HELP, probe
 
 DEFAULT_TASKS = "desk,regrasp,pack"
-DEFAULT_METHODS = "quasi-random,mcts-bo,cp-bo,cp-bo-transfer,optuna-tpe"
+DEFAULT_METHODS = "quasi-random,quasi-random-restarts,mcts-bo,cp-bo,cp-bo-transfer,optuna-tpe"
 
 
 def _csv_list(text: str) -> list[str]:
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "worker processes. Results are appended run by run to OUT/runs.jsonl; a rerun with "
             "the same --out skips finished runs. Writes OUT/summary.md, OUT/summary.csv and "
             "the plots OUT/rollouts.* and OUT/wall_time.* (PNG, SVG, PDF). The defaults run "
-            "3 tasks x 5 methods x 100 seeds = 1,500 runs (days on a laptop): try --seeds 3 "
+            "3 tasks x 6 methods x 100 seeds = 1,800 runs (days on a laptop): try --seeds 3 "
             "first."
         ),
         epilog="Exit status: 0 when every asked run has a result, 1 when runs failed or were "
@@ -50,7 +50,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--methods",
         type=_csv_list,
         default=_csv_list(DEFAULT_METHODS),
-        help="samplers, plus cp-bo-transfer (cp-bo after the task's predecessors, "
+        help="samplers, plus quasi-random-restarts (quasi-random with cp-bo's restarts and "
+        "redraws: the strongest baseline, which the summaries measure against), "
+        "cp-bo-transfer (cp-bo after the task's predecessors, "
         "30 rollouts each, in the same knowledge base), cp-bo-paper (the paper's CP-BO: "
         "cp-bo with every extension off) and cp-bo-paper-transfer (the paper's CP-BO "
         f"Transfer); default {DEFAULT_METHODS}",
@@ -69,7 +71,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "block of seeds adds to the same --out",
     )
     parser.add_argument(
-        "--workers", type=positive_int, default=os.cpu_count() or 1, help="worker processes"
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes (default: the machine's cores; 1 with --cores)",
+    )
+    parser.add_argument(
+        "--cores",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="every method gets N cores in all, one run at a time (pinned; Linux): a guided "
+        "method's planner one and its embedded service the others (with N=1, the planner's "
+        "own), a method without knowledge N trees at once, the first binding winning and "
+        "the rollouts summed over the trees; recorded with the results; default: cores are "
+        "not counted",
     )
     parser.add_argument(
         "--concurrent",
@@ -217,7 +233,7 @@ def handle(args: argparse.Namespace) -> int:
         tasks=suite_tasks(args.tasks),
         methods=args.methods,
         seeds=range(args.first_seed, args.first_seed + args.seeds),
-        workers=args.workers,
+        workers=args.workers or (1 if args.cores else os.cpu_count() or 1),
         out_dir=args.out,
         kb_url=args.kb_url,
         token=token,
@@ -235,6 +251,7 @@ def handle(args: argparse.Namespace) -> int:
         variants=bench_variants(args.variants),
         ray_address=args.ray,
         service_cores=args.service_cores,
+        cores=args.cores,
     )
     try:
         if args.kb_url is not None and not args.summary_only:

@@ -11,7 +11,7 @@ from cpkb.cli.argtypes import parse_duration
 from cpkb.cli.config_args import add_config_arguments, plan_config
 from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
 
-METHODS = ("quasi-random", "mcts-bo", "cp-bo", "cp-bo-paper", "optuna-tpe")
+METHODS = ("quasi-random", "quasi-random-restarts", "mcts-bo", "cp-bo", "cp-bo-paper", "optuna-tpe")
 
 
 def register(subparsers: Any) -> None:

@@ -11,9 +11,10 @@ it; samplers see it as `SampleContext.sibling_scores` (MCTS-BO regresses on it).
 With a sampler that rates its proposals (`Proposal`), a node also opens an untried value that is
 rated well above its children's outlook, and UCB keeps to the children with the best outlook
 (`SearchConfig.outlook_ratio`; each rule has its switch).
-With `SearchConfig.restart_unit` and a sampler whose knowledge outlives the tree, the tree is
-dropped and grown anew on Luby's (or a doubling) schedule; rollouts count across trees (with
-`SearchConfig.restart_redraws` each tree draws the world's randomised checks afresh).
+With `SearchConfig.restart_unit` and a sampler whose knowledge outlives the tree (any sampler
+with `SearchConfig.restart_without_knowledge`), the tree is dropped and grown anew on Luby's
+(or a doubling) schedule; rollouts count across trees (with `SearchConfig.restart_redraws`
+each tree draws the world's randomised checks afresh).
 A sampler may hand out a whole binding to follow (`Sampler.chain`, such as one another
 planner passed): that rollout takes its values, opening the children the tree lacks.
 """
@@ -116,8 +117,10 @@ class PWUCT:
         self.decisions = world.skeleton.decisions
         self.n_layers = len(world.skeleton.layers)
         self.root = self._new_root()
-        # Only a sampler whose knowledge outlives the tree restarts (`Sampler.keeps_knowledge`).
-        self._restart_unit = self.config.restart_unit if sampler.keeps_knowledge else 0
+        # Only a sampler whose knowledge outlives the tree restarts (`Sampler.keeps_knowledge`),
+        # unless every sampler is to (`SearchConfig.restart_without_knowledge`).
+        restarts = sampler.keeps_knowledge or self.config.restart_without_knowledge
+        self._restart_unit = self.config.restart_unit if restarts else 0
         self.restarts = 0
         self._tree_rollouts = 0
         self._unproven = False  # whether this tree met a failure another draw may undo

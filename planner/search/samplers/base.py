@@ -47,8 +47,9 @@ class Sampler(Protocol):
     name: str
     keeps_knowledge: bool
     """Whether what it learns outlives the tree (in a knowledge base). Only then does the tree
-    restart (`SearchConfig.restart_unit`): a fresh tree of a sampler that keeps nothing throws
-    away every failure it has met, and measured so, quasi-random took more rollouts."""
+    restart (`SearchConfig.restart_unit`), unless `SearchConfig.restart_without_knowledge`
+    says every sampler does: a fresh tree of a sampler that keeps nothing throws away every
+    failure it has met, but draws its checks afresh (`quasi-random-restarts`)."""
 
     def propose(self, ctx: SampleContext) -> Value | Proposal:
         """A value for `ctx.var`, from its domain; never a sibling of a categorical variable."""

@@ -3,8 +3,9 @@
 It binds one variable x in [0, 1] whose feasible set is [0.9, 1]: each rollout draws x
 (uniformly for `quasi-random`; from [0.5, 1] for the other methods, so they need fewer
 rollouts, as a guided sampler would), after sleeping `sleep_s` (only on `sleep_seeds` if
-given). Every call is logged to `log_path` (one JSON line), so
-tests can see which runs were executed, in which order, with which arguments.
+given). The task `never` has no feasible x. Every call is logged to `log_path` (one JSON
+line), so tests can see which runs were executed, in which order, with which arguments; each
+rollout is reported to `progress`, as `run_plan` does.
 """
 
 from __future__ import annotations
@@ -13,10 +14,16 @@ import json
 import os
 import time
 import zlib
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class ToyProgress:
+    rollouts: int
 
 
 def toy_run(
@@ -33,6 +40,7 @@ def toy_run(
     sleep_seeds: Iterable[int] | None = None,
     fail_seeds: tuple[int, ...] = (),
     stop_at_first: bool = True,
+    progress: Callable[[ToyProgress], None] | None = None,
 ) -> dict[str, object]:
     started = time.perf_counter()
     with Path(log_path).open("a", encoding="utf-8") as handle:
@@ -45,6 +53,7 @@ def toy_run(
             "max_rollouts": max_rollouts,
             "stop_at_first": stop_at_first,
             "pid": os.getpid(),
+            "cpus": sorted(os.sched_getaffinity(0)),
         }
         handle.write(json.dumps(call) + "\n")
     if seed in fail_seeds:
@@ -56,7 +65,9 @@ def toy_run(
     rollouts, solved = 0, False
     while rollouts < max_rollouts:
         rollouts += 1
-        if rng.uniform(low, 1.0) >= 0.9:
+        if progress is not None:
+            progress(ToyProgress(rollouts))
+        if rng.uniform(low, 1.0) >= 0.9 and task != "never":
             solved = True
             if stop_at_first:
                 break

@@ -26,6 +26,9 @@ from cpkb.cli import main
         (["--tasks", "missing/task.yaml", "--methods", "cp-bo"], "no such task file"),
         (["--tasks", "analytic:deskP", "--methods", "cp-bo-transfer"], "no predecessor tasks"),
         (["--tasks", "desk,pack", "--methods", "cp-bo", "--mixed"], "--mixed needs --concurrent"),
+        (["--cores", "0"], "must be at least 1, got 0"),
+        (["--cores", "1", "--workers", "2", "--methods", "cp-bo"], "use --workers 1"),
+        (["--cores", "100000", "--methods", "cp-bo"], "may use only"),
     ],
 )
 def test_bad_arguments_are_one_line_errors(

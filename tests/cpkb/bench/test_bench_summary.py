@@ -13,7 +13,7 @@ from scipy.stats import mannwhitneyu
 from cpkb.bench.app import BenchSettings, run_command
 from cpkb.bench.plots import write_plots
 from cpkb.bench.results import ResultStore
-from cpkb.bench.scenarios import expand
+from cpkb.bench.scenarios import PAPER_BASELINE_METHOD, expand
 from cpkb.bench.stats import markdown_table, summarize, write_summary
 
 # Desk, quasi-random and cp-bo-transfer, seeds 100-119 of `benchmarks/results/paper9`.
@@ -41,7 +41,7 @@ TRANSFER = [1, 2, 3, 4, 5]
 
 def test_cells_give_mean_sd_median_solved_reduction_and_p_value() -> None:
     records = _records("desk", "quasi-random", QR) + _records("desk", "cp-bo-transfer", TRANSFER)
-    rows = summarize(records, ["desk"], ["quasi-random", "cp-bo-transfer"])
+    rows = summarize(records, ["desk"], ["quasi-random", "cp-bo-transfer"], PAPER_BASELINE_METHOD)
     assert [(r.task, r.method) for r in rows] == [
         ("desk", "quasi-random"),
         ("desk", "cp-bo-transfer"),
@@ -60,7 +60,8 @@ def test_cells_give_mean_sd_median_solved_reduction_and_p_value() -> None:
     low, high = tr.reduction_ci
     assert 0 < low < 90 < tr.reduction_pct <= high < 100
     assert qr.reduction_ci is None and qr.median_reduction_pct is None
-    table = markdown_table(rows)
+    table = markdown_table(rows, PAPER_BASELINE_METHOD)
+    assert "| reduction vs quasi-random |" in table and "the paper's baseline" in table
     assert "| desk | cp-bo-transfer | 5 | 100% | 3.0 ± 1.6 | 3 | 99.3% | [" in table
     assert "| 90.0% | 71.69% |" in table
 
@@ -96,7 +97,7 @@ def test_compressed_runs_are_read_as_finished_runs() -> None:
     records = store.records()
     assert len(records) == 40
     assert store.pending(expand(["desk"], PAPER9_METHODS, range(100, 120))) == []
-    rows = summarize(records, ["desk"], PAPER9_METHODS)
+    rows = summarize(records, ["desk"], PAPER9_METHODS, PAPER_BASELINE_METHOD)
     qr, tr = (
         [r["rollouts"] for r in records if r["method"] == method] for method in PAPER9_METHODS
     )
@@ -137,12 +138,41 @@ def test_a_suite_is_summarised_by_kind_pooling_its_targets() -> None:
         + _records("a/pack.yaml", "quasi-random", [8, 8])
     )
     kinds = {"a/desk.yaml": "desk", "b/desk.yaml": "desk", "a/pack.yaml": "pack"}
-    rows = {(r.task, r.method): r for r in summarize_by_kind(records, kinds)}
+    rows = {
+        (r.task, r.method): r
+        for r in summarize_by_kind(records, kinds, baseline=PAPER_BASELINE_METHOD)
+    }
     transfer = rows[("desk", "cp-bo-transfer")]
     assert transfer.n == 4 and rows[("desk", "quasi-random")].n == 4
     assert transfer.reduction_pct == pytest.approx(100 * (40 - 4) / 40)
     assert transfer.paper_reduction_pct is None
     assert rows[("pack", "quasi-random")].rollouts_mean == pytest.approx(8)
+    assert transfer.targets == 2 and transfer.beats == (2, 2)
+    assert transfer.reduction_ci_targets is not None
+    everything = rows[("all", "quasi-random")]
+    assert everything.n == 6 and everything.targets == 3
+    every_base = (10 + 30 + 50 + 70 + 8 + 8) / 6  # pack's too: a row pools its cells' runs
+    assert rows[("all", "cp-bo-transfer")].reduction_pct == pytest.approx(
+        100 * (every_base - 4) / every_base
+    )
+
+
+def test_every_summary_is_against_the_strongest_baseline_unless_told() -> None:
+    records = (
+        _records("desk", "quasi-random", QR)
+        + _records("desk", "quasi-random-restarts", [10, 20, 30, 40, 50])
+        + _records("desk", "cp-bo-transfer", TRANSFER)
+    )
+    strongest = {r.method: r for r in summarize(records)}
+    transfer = strongest["cp-bo-transfer"]
+    assert transfer.baseline == "quasi-random-restarts"
+    assert transfer.reduction_pct == pytest.approx(100 * (30 - 3) / 30)
+    assert transfer.paper_reduction_pct is None  # the paper's figure is against its baseline
+    assert strongest["quasi-random"].reduction_pct == pytest.approx(100 * (30 - 420) / 30)
+    assert "| reduction vs quasi-random-restarts |" in markdown_table(list(strongest.values()))
+    paper = {r.method: r for r in summarize(records, baseline=PAPER_BASELINE_METHOD)}
+    assert paper["cp-bo-transfer"].reduction_pct == pytest.approx(100 * (420 - 3) / 420)
+    assert paper["cp-bo-transfer"].paper_reduction_pct == 71.69
 
 
 def test_generated_targets_are_known_by_their_declared_kind() -> None:

@@ -182,3 +182,47 @@ def test_a_tree_closed_by_unproven_failures_restarts_with_fresh_draws(redraws):
     assert result.restarts == (1 if redraws else 0)
     proven = PWUCT(LuckyLater(proven=True), FirstChoices(), seed=1, config=config).run(200)
     assert proven.exhausted and not proven.solved and proven.restarts == 0
+
+
+def test_quasi_random_restarts_is_quasi_random_with_restarts_and_nothing_else():
+    paper = PlanConfig().to_dict()
+    strongest = method_config("quasi-random-restarts").to_dict()
+    assert not paper["search"]["restart_without_knowledge"]
+    assert strongest["search"].pop("restart_without_knowledge")
+    paper["search"].pop("restart_without_knowledge")
+    assert strongest == paper
+
+
+def test_the_strongest_baseline_restarts_on_the_schedule_and_redraws_its_checks():
+    """Quasi-random keeps nothing beyond its tree, yet with `restart_without_knowledge` it
+    restarts on cp-bo's schedule, each tree drawing its picks afresh."""
+    world = Attempts()
+    base = method_config("quasi-random-restarts").search
+    config = SearchConfig(**{**base.__dict__, "restart_unit": 5, "inconclusive_retries": 2})
+    sampler = FirstChoices(keeps_knowledge=False)
+    result = PWUCT(world, sampler, seed=3, config=config).run(40)
+    assert sampler.fresh_roots == [1, 6, 11, 21, 26, 31]
+    assert result.restarts == 5 and result.rollouts == result.rollouts_spent == 40
+    firsts = [a for a in world.picks if a % 3 == 0]
+    assert sorted(set(firsts)) == [3 * k for k in range(result.restarts + 1)]
+
+
+def test_the_strongest_baseline_redraws_a_tree_closed_by_unproven_failures():
+    config = method_config("quasi-random-restarts").search
+    search = PWUCT(LuckyLater(), FirstChoices(keeps_knowledge=False), seed=1, config=config)
+    strongest = search.run(200)
+    paper = PWUCT(LuckyLater(), QuasiRandomSampler(), seed=1, config=SearchConfig()).run(200)
+    assert strongest.solved and strongest.restarts == 1
+    assert paper.exhausted and not paper.solved and paper.restarts == 0
+
+
+def test_a_quasi_random_restarts_run_counts_rollouts_across_trees_and_records_the_switch():
+    config = PlanConfig().with_overrides({"search.restart_unit": 1})
+    result = run_plan(Unplaceable(), "quasi-random-restarts", 3, max_rollouts=10, config=config)
+    assert not result.solved
+    assert result.rollouts == result.rollouts_spent == 10  # summed over the 7 trees
+    assert "tree restarted 6 times" in result.notes
+    assert result.config["search"]["restart_without_knowledge"] is True
+    plain = run_plan(Unplaceable(), "quasi-random", 3, max_rollouts=10, config=config)
+    assert not any("restarted" in note for note in plain.notes)
+    assert plain.config["search"]["restart_without_knowledge"] is False
