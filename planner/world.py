@@ -77,12 +77,9 @@ class WorldGeometry:
     the declared domains. Tuples, not dicts: a geometry keys the process's cache of graphs.
 
     `body_sizes`: each movable body's box `(size_x, size_y, size_z)`; its footprint
-    `(size_x, size_y)` gives the symmetries of its grasps. `placement_extents`: each placement
-    decision's half extents `(half_x, half_y)` that its seed's x and y span about its region's
-    centre."""
+    `(size_x, size_y)` gives the symmetries of its grasps."""
 
     body_sizes: tuple[tuple[str, tuple[float, float, float]], ...] = ()
-    placement_extents: tuple[tuple[str, Extents], ...] = ()
 
     def size(self, body: str) -> tuple[float, float, float] | None:
         return dict(self.body_sizes).get(body)
@@ -90,9 +87,6 @@ class WorldGeometry:
     def footprint(self, body: str) -> Extents | None:
         size = self.size(body)
         return (size[0], size[1]) if size is not None else None
-
-    def extents(self, var: str) -> Extents | None:
-        return dict(self.placement_extents).get(var)
 
 
 class BindingWorld(Protocol):

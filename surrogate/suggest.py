@@ -117,14 +117,12 @@ def suggest(
     *,
     key: str,
     config: OptimizerConfig,
-    shared: Sequence[Mapping[str, Value]] = (),
     hints: Sequence[Mapping[str, Value]] = (),
     preferred: int = 0,
 ) -> SuggestAnswer:
     """The MPF maximiser over `request.space` for its constraints (a space-filling point when
     there are none), away from `exclude` and from the suggestions pending in `book` under `key`;
-    the answer's points are recorded there as pending. `shared`: more pending points, in this
-    request's variables, kept away from but not recorded (other planners'). `hints`: points in
+    the answer's points are recorded there as pending. `hints`: points in
     this request's variables that the maximiser scores besides its own candidates, the first
     `preferred` of them preferred (`surrogate.optimize.maximize_batch`). Raises
     InvalidRequest naming the field, SpaceExhausted when a finite space is wholly excluded, and
@@ -142,7 +140,7 @@ def suggest(
                 constraint.type_id, model.predictor, model.space, constraint.bind, request.fixed
             )
         )
-    pending = [*book.for_request(key, frozenset(models)), *shared]
+    pending = book.for_request(key, frozenset(models))
     seed = request.seed if request.seed is not None else secrets.randbits(31)
     try:
         if terms:
