@@ -94,12 +94,14 @@ class BindingWorld(Protocol):
 
     `state` is opaque to the search: the world returns it with each successful transition
     and restores it before executing the next layer from that tree node. `geometry` is what it
-    tells the encodings (`WorldGeometry()` for none).
+    tells the encodings (`WorldGeometry()` for none). `culprit_candidates`: every body a failed
+    check may name as its culprit (none for a world that names none).
     """
 
     name: str
     skeleton: Skeleton
     geometry: WorldGeometry
+    culprit_candidates: tuple[str, ...]
 
     def initial_state(self) -> object: ...
 

@@ -85,8 +85,7 @@ class KnowledgeSession:
 
     def prematch(self) -> None:
         """Activate the known types among every graph this task could produce."""
-        culprits = tuple(getattr(self.world, "culprit_candidates", ()))
-        self.stats.types_prematched = self.matcher.prematch(culprits)
+        self.stats.types_prematched = self.matcher.prematch(self.world.culprit_candidates)
         self.sharing.start()
         if self.guidance.found is not None:
             self.guidance.found.start()
