@@ -155,8 +155,7 @@ class MctsBoConfig:
     """MCTS-BO's GP-UCB sampler (`planner.search.samplers.mcts_bo`)."""
 
     beta: float = 8.0
-    """UCB's exploration weight, in the fit's standardised units (beta 2 followed the graded
-    target into dead ends)."""
+    """UCB's exploration weight, in the fit's standardised units."""
     min_children: int = 2
     """Children a node needs (with differing targets) before the GP guides it."""
     graded: bool = True
@@ -224,7 +223,7 @@ class KnowledgeConfig:
     periodic_headings: bool = True
     """A placement's heading is encoded on a circle (`surrogate.encoding`): the two ends of its
     seed's range are one heading, which the paper's encoding, a plain column, puts furthest
-    apart, so that an acquisition's argmax took both ends for unexplored places."""
+    apart."""
     relative_pairs: bool = True
     """In a type holding two placements of one region (a box placed beside another), the
     model's inputs are their relative pose alone, not where each lies in the region as well
