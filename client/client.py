@@ -21,7 +21,7 @@ import random
 import ssl
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -41,9 +41,6 @@ from contract.models import (
     MatchResult,
     ModelsIn,
     ModelsOut,
-    PendingIn,
-    PendingOut,
-    PendingPoint,
     PointIn,
     PointOut,
     PointResult,
@@ -54,8 +51,6 @@ from contract.models import (
     PointsSinceOut,
     PredictIn,
     PredictOut,
-    StoredFeasibleIn,
-    StoredFeasibleOut,
     SuggestIn,
     SuggestOut,
     TypeDetail,
@@ -312,14 +307,6 @@ class CpkbClient:
         body = self._body(request)
         return self._call(PointsSinceOut, "POST", f"/v1/kbs/{kb}/points/since", json=body)
 
-    def stored_feasible(
-        self, kb: str, type_ids: Iterable[str], per_type: int = 8
-    ) -> StoredFeasibleOut:
-        """The newest `per_type` feasible points of each of these types, with their run and
-        rollout."""
-        body = self._body(StoredFeasibleIn(type_ids=list(type_ids), per_type=per_type))
-        return self._call(StoredFeasibleOut, "POST", f"/v1/kbs/{kb}/points/feasible", json=body)
-
     def add_binding(self, kb: str, binding: BindingIn) -> BindingOut:
         """Store a binding list found for a task. A binding without `key` gets a fresh one, so
         retries of this call never store it twice."""
@@ -391,13 +378,6 @@ class CpkbClient:
         """The current predictors of these types (minus those still at a `known` version)."""
         body = self._body(ModelsIn(type_ids=list(type_ids), known=dict(known or {})))
         return self._call(ModelsOut, "POST", f"/v1/kbs/{kb}/models", json=body)
-
-    def exchange_pending(
-        self, kb: str, run: str, served: Sequence[PendingPoint], type_ids: Sequence[str]
-    ) -> PendingOut:
-        """Report this run's unanswered suggestions; the other runs' of these types back."""
-        body = self._body(PendingIn(run=run, served=list(served), type_ids=list(type_ids)))
-        return self._call(PendingOut, "POST", f"/v1/kbs/{kb}/pending", json=body)
 
     def predict(self, kb: str, type_id: str, xs: Iterable[Mapping[str, Any]]) -> list[float]:
         """P(feasible) of each x (decision label -> value) under the type's surrogate."""

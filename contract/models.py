@@ -392,7 +392,6 @@ class PointsPage(BaseModel):
 
 
 MAX_WATCHED_TYPES = 512  # types in one `points/since` request
-MAX_STORED_FEASIBLE = 100  # points per type in one `points/feasible` answer
 
 
 class PointsSinceIn(_Strict):
@@ -431,23 +430,6 @@ class PointsSinceIn(_Strict):
     )
 
 
-class StoredFeasibleIn(_Strict):
-    """The newest feasible points the knowledge base holds of each of these types, with the
-    run and rollout that passed them: candidates for a planner starting on types earlier runs
-    met, so that a binding found before is scored before the search has wandered near it (a
-    fitted model rates a narrow feasible region high only close to its points). A type ID the
-    knowledge base does not hold has none."""
-
-    model_config = ConfigDict(
-        json_schema_extra={"examples": [{"type_ids": [_TYPE_ID_EXAMPLE], "per_type": 8}]}
-    )
-
-    type_ids: list[Label] = Field(max_length=MAX_WATCHED_TYPES, description="The types.")
-    per_type: int = Field(
-        default=8, ge=1, le=MAX_STORED_FEASIBLE, description="At most this many per type."
-    )
-
-
 class LivePoint(BaseModel):
     point_id: int
     type_id: str
@@ -464,12 +446,6 @@ class PointsSinceOut(BaseModel):
     points: list[LivePoint]
     cursor: int
     more: bool = False
-
-
-class StoredFeasibleOut(BaseModel):
-    """Per type the newest first."""
-
-    points: list[LivePoint]
 
 
 class PredictIn(_Strict):
@@ -567,66 +543,6 @@ class SuggestOut(BaseModel):
     method: str = "mpf"
     n_fitted: dict[str, int] = Field(default_factory=dict)
     n_pending: int = 0
-
-
-MAX_PENDING_REPORT = 256  # pending suggestions one planner reports at a time
-
-
-class PendingPoint(_Strict):
-    x: dict[Label, Value] = Field(
-        description="The suggestion, by the variables of the request that got it."
-    )
-    binds: list[Constraint] = Field(
-        min_length=1,
-        max_length=64,
-        description="The request's constraints: which types the suggestion is for, and how "
-        "their decision labels map onto the variables of `x`.",
-    )
-
-
-class PendingIn(_Strict):
-    """A planner suggesting in its own process reports the suggestions it served that no point
-    has answered yet (`served`, replacing what `run` reported before; empty: withdraw them) and
-    reads back the other planners' pending suggestions of `type_ids`, those of planners that
-    suggest in the service too, so that planners sharing a knowledge base are pushed apart."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "run": "desk-cp-bo-7",
-                    "served": [
-                        {
-                            "x": {"g": "top", "p": [0.42, 0.7, 1.57]},
-                            "binds": [
-                                {"type_id": _TYPE_ID_EXAMPLE, "bind": {"#dir": "g", "#pose": "p"}}
-                            ],
-                        }
-                    ],
-                    "type_ids": [_TYPE_ID_EXAMPLE],
-                }
-            ]
-        }
-    )
-
-    run: Label = Field(description="The reporting run (`source.run` of its points).")
-    served: list[PendingPoint] = Field(
-        default_factory=list,
-        max_length=MAX_PENDING_REPORT,
-        description="This run's suggestions not answered by a point yet.",
-    )
-    type_ids: list[Label] = Field(
-        default_factory=list,
-        max_length=MAX_WATCHED_TYPES,
-        description="The types whose other planners' pending suggestions to send back.",
-    )
-
-
-class PendingOut(BaseModel):
-    """Other runs' pending suggestions of the types asked for, each in its own request's
-    variables: map them through `binds` (a type's labels) onto yours."""
-
-    pending: list[PendingPoint]
 
 
 class ModelsIn(_Strict):

@@ -38,8 +38,6 @@ def _at_least(config: object, **bounds: float) -> None:
 
 
 RESTART_SCHEDULES = ("luby", "geometric")
-OUTLOOK_EXHAUSTED = ("off", "view", "counted")
-STORED_HINTS_PREFER = ("all", "whole", "none")
 
 
 @dataclass(frozen=True)
@@ -59,17 +57,6 @@ class SearchConfig:
     hopeless_min_children: int = 8
     """Only a node with this many children can be hopeless: a refit that lowers every
     prediction at once must not let every parent widen at every visit."""
-    hopeless_choices: bool = False
-    """(With `hopeless_widening`.) A categorical decision that has tried every choice, whose
-    open choices all lead to hopeless nodes, is hopeless itself, so the decision above it
-    widens: a grasp node can never have `hopeless_min_children` children, and without this a
-    placement under which only a grasp that cannot be placed is left widens by the PW law only
-    (`planner.search.tree.note_choices`). Off: the development suites disagreed (BENCHMARKS.md)."""
-    leave_hopeless: bool = False
-    """(With `hopeless_widening`.) UCB selects a child whose node is hopeless only while every
-    open child's is. Off, a hopeless child stays as selectable as any, and the one whose
-    rollouts fail deepest (a grasp that lifts the body but cannot place it) keeps being chosen.
-    Off: with `hopeless_choices`, the development and held-out suites disagreed (BENCHMARKS.md)."""
     outlook_widening: bool = True
     """An untried value rated `outlook_ratio` times above the best open child's outlook opens
     at once instead of waiting for the PW law."""
@@ -81,22 +68,11 @@ class SearchConfig:
     outlook_free_every: int = 4
     """Every this many visits a node selects by plain UCB, whatever the outlooks: completeness."""
     outlook_prior_weight: float = 4.0
-    """A child's outlook is the knowledge base's P(feasible) below it as a Beta prior worth this
-    many rollouts, updated by the failed rollouts through it: `w p / (w + failures)`. The
-    knowledge base learns a failure only where it happened (until a refit spreads it), so counted
-    failures make the search leave a child once another child's evidence is better."""
-    outlook_continuous_failures: bool = False
-    """Count the failures through a child of a continuous decision too (a box placed where the
-    next ones keep failing), not only through a categorical choice; off: such a child's outlook
-    is the model's view below it, which an unfitted type leaves near its prior."""
-    outlook_exhausted: str = "off"
-    """How a child is rated whose node below has tried every choice (a grasp node under a
-    placement), which proposes no more: `view`, by the current view of that node's open
-    children (the latest proposals below them); `counted`, by that view counted against the
-    failures through each of them, as a choice's outlook is (`outlook_prior_weight`). Either
-    way a placement under which only a grasp that cannot be placed is left open looks as bad
-    as it is, so selection leaves it and widening opens another. `off`: by the last proposal
-    the node made before it ran out of choices (the paper has no outlook)."""
+    """A categorical child's outlook is the knowledge base's P(feasible) below it as a Beta
+    prior worth this many rollouts, updated by the failed rollouts through it:
+    `w p / (w + failures)`. The knowledge base learns a failure only where it happened (until a
+    refit spreads it), so counted failures make the search leave a child once another child's
+    evidence is better. A continuous child's outlook is the model's view below it."""
 
     restart_unit: int = 64
     """Rollouts in one unit of Luby's restart schedule (runs of 1, 1, 2, 1, 1, 2, 4, ... units):
@@ -122,8 +98,7 @@ class SearchConfig:
     placement's motion succeeds is drawn again by the next tree, where one tree keeps it for
     ever (a passed choice is never retried). And a tree that closes on failures no draw proved
     (every grasp's IK found nothing) restarts instead of ending the search. Off: every tree
-    draws as the first did, and a seed whose pick leads nowhere stays unsolved (BENCHMARKS.md,
-    heldout8)."""
+    draws as the first did."""
 
     inconclusive_retries: int = 3
     """Further attempts a categorical choice gets after failing inconclusively (IK restarts or
@@ -132,11 +107,6 @@ class SearchConfig:
     of clutter is unlucky never solves its task. 0: a failed choice is closed for good."""
 
     def __post_init__(self) -> None:
-        if self.outlook_exhausted not in OUTLOOK_EXHAUSTED:
-            raise ConfigError(
-                f"search.outlook_exhausted is one of {', '.join(OUTLOOK_EXHAUSTED)},"
-                f" not {self.outlook_exhausted!r}"
-            )
         if self.restart_schedule not in RESTART_SCHEDULES:
             raise ConfigError(
                 f"search.restart_schedule is one of {', '.join(RESTART_SCHEDULES)},"
@@ -180,21 +150,9 @@ class CpBoConfig:
     prematch: bool = True
     """Before the search, activate the known types of every graph the task could produce; the
     paper activates a type when its failure is met."""
-    explore_below: float = 0.0
-    """A continuous decision whose best proposal the knowledge base rates below this takes a
-    space-filling value instead, as quasi-random would: a model that expects every value to
-    fail knows no region that succeeds, and the argmax of such a surface keeps the search where
-    a predecessor's or a few failures' lessons left it, where quasi-random would spread.
-    0: never (the paper)."""
-    random_every: int = 0
-    """One in this many new children of a continuous decision is space-filling instead of the
-    proposal (SMAC's interleaved random configurations): what a misleading model can cost is
-    bounded, at the price of that share of guided values. 0: never (the paper)."""
 
     def __post_init__(self) -> None:
-        _at_least(
-            self, batch=1, batch_max_age=0, outlook_max_age=0, explore_below=0.0, random_every=0
-        )
+        _at_least(self, batch=1, batch_max_age=0, outlook_max_age=0)
 
 
 @dataclass(frozen=True)
@@ -202,8 +160,7 @@ class MctsBoConfig:
     """MCTS-BO's GP-UCB sampler (`planner.search.samplers.mcts_bo`)."""
 
     beta: float = 8.0
-    """UCB's exploration weight, in the fit's standardised units (beta 2 followed the graded
-    target into dead ends)."""
+    """UCB's exploration weight, in the fit's standardised units."""
     min_children: int = 2
     """Children a node needs (with differing targets) before the GP guides it."""
     graded: bool = True
@@ -253,9 +210,8 @@ class KnowledgeConfig:
     post_linger_ms: float = 100.0
     """The background poster waits this long after a rollout's points for later ones to join
     them in one request (`planner.knowledge.poster`); a wait for a batch to be stored cuts it
-    short. Each request costs the planner's process CPU time while its thread holds the GIL,
-    and posting each rollout's points alone took the largest share of the background threads'
-    time (`dev-quiet` in BENCHMARKS.md). 0: each batch goes as soon as the poster is free."""
+    short. Each request costs the planner's process CPU time while its thread holds the GIL.
+    0: each batch goes as soon as the poster is free."""
     deterministic: bool = False
     """Wait for each refit this planner's points ask for, and post and fetch in the foreground:
     the same seed on a fresh knowledge base gives the same run, at the cost of the waits."""
@@ -268,49 +224,23 @@ class KnowledgeConfig:
     """A grasp holding any box being placed is encoded with opposite faces alike (front and
     back, right and left): the placing hand's pose is the same and the box, turned half a turn,
     occupies the same footprint, so what one face taught about a region holds for the other
-    (`planner.failures.graphs`). On: on the development suite both cp-bo and transfer took
-    fewer rollouts with it, regrasp most, and on a retired held-out draw no more
-    (BENCHMARKS.md, `dev-symmetry`); the paper encodes the grasp as declared."""
-    metric_frames: bool = False
-    """A placement's relative pose to another in its region is measured in metres, from the
-    region's and the body's extents (`surrogate.encoding`), not in seed units. Off: on the
-    development suite's pack tasks it took more rollouts."""
+    (`planner.failures.graphs`); the paper encodes the grasp as declared."""
     periodic_headings: bool = True
     """A placement's heading is encoded on a circle (`surrogate.encoding`): the two ends of its
     seed's range are one heading, which the paper's encoding, a plain column, puts furthest
-    apart, so that an acquisition's argmax took both ends for unexplored places. On: on the
-    development suites plain cp-bo took fewer rollouts with it and transfer no more
-    (BENCHMARKS.md, `dev-periodic`)."""
+    apart."""
     relative_pairs: bool = True
     """In a type holding two placements of one region (a box placed beside another), the
     model's inputs are their relative pose alone, not where each lies in the region as well
     (`surrogate.encoding`): what one pair of boxes taught (in a predecessor, or earlier in the
-    run) then holds wherever the next pair stands. On: on the development suite's pack targets
-    cp-bo and transfer took fewer rollouts with it (BENCHMARKS.md); the paper's inputs are the
-    decisions' values."""
-    body_sizes: bool = False
-    """A movable body's vertex in a failure graph carries its size (to the millimetre), so that
-    knowledge transfers between tasks only for the same object, not for another object of the
-    same name (`planner.failures.graphs`); the paper labels by name."""
+    run) then holds wherever the next pair stands. The paper's inputs are the decisions'
+    values."""
     movable_names: bool = False
     """A movable body's vertex in a failure graph is labelled with its name, as the paper's are;
     off: `movable`, so that the failures of one box placed beside another are one type whichever
     boxes they are (pack's second box beside its first, its third beside its second, and a
     predecessor's boxes of other names), and what one pair taught, the others use
-    (`planner.failures.graphs`). Off by default: transfer on the development suite's pack
-    targets took fewer rollouts so (BENCHMARKS.md); a task with one movable body gets the same
-    types either way. `size_inputs` needs it on."""
-    size_inputs: bool = False
-    """A movable body's size `(x, y, z)` is an input of the models of the types it appears in
-    (fixed at suggestion time, like earlier decisions), instead of being ignored (a name) or
-    part of the type (`body_sizes`): knowledge transfers between boxes of one name as far as
-    the fit finds their points agree (`planner.failures.graphs`). The paper has no such input."""
-    prior_base_rate: bool = False
-    """A type whose points are all of one class (or too few to fit) is rated around its own
-    rate of feasible points, `(a + 1) / (n + 2)`, instead of 0.5, in this planner's MPF
-    (`surrogate.predictors.PriorPredictor.with_base_rate`): a decision whose constraints failed
-    every time so far looks worse the more it failed. Applies where the planner maximises MPF
-    itself (`--suggest-in planner`, the default); the paper's prior has no base rate."""
+    (`planner.failures.graphs`); a task with one movable body gets the same types either way."""
     prior_counts: float = 2.0
     """With s > 0, the stated prior of a type without a fit counts its points, a Beta prior of
     s pseudo-points updated by kernel-weighted counts (`surrogate.predictors.PriorPredictor`),
@@ -319,35 +249,15 @@ class KnowledgeConfig:
     form rates both alike and prefers the choice that failed most, as long as it failed at
     other placements. Applies where the planner maximises MPF itself; 0: the nearest-point
     form (`cp-bo-paper` pins it)."""
-    prior_choice_rates: bool = False
-    """With `prior_counts`, the counted prior of a type without a fit is centred per
-    categorical choice (`surrogate.predictors.PriorPredictor.by_choice`): a grasp whose every
-    placement on a shelf failed is rated low at the shelf's untried placements too, where the
-    kernel alone rates a place far from its failures at the centre whatever grasp made them.
-    Relative to the best choice, which keeps the centre. Applies where the planner maximises MPF
-    itself; the paper's prior has no choices."""
-    model_evidence: bool = False
-    """Where this planner maximises MPF, a type's fetched model is averaged with the stated
-    prior on this run's own points of the type, each weighted by how well it predicted those
-    points before they were known (Bayesian model averaging on the prequential likelihood,
-    `planner.knowledge.local.Evidence`): a model learnt from other tasks' points (another
-    body, another start) that keeps promising what fails here hands the choice back to this
-    run's own failures; one that keeps being right keeps it. The paper trusts every model."""
-    model_evidence_prior: float = 0.8
-    """With `model_evidence`, the weight of the fetched model before this run has any point."""
     spread_walls: bool = OptimizerConfig().spread_walls
     """Where this planner maximises MPF, the margin rule's spread keeps a node's children off
     the faces of its box (`surrogate.avoid.AvoidSet.spread`); off, its most spread point may
     lie on a face or in a corner, as the quasi-random baseline's does. The service's own
-    suggestions (`--suggest-in service`) follow the service's setting. On: off, a first box
-    goes to the side of a tray rather than its middle, but on the development suite no kind
-    took measurably fewer rollouts and transfer on desk took more (BENCHMARKS.md)."""
+    suggestions (`--suggest-in service`) follow the service's setting."""
     live_points: bool = True
     """Take in other planners' new points of the active types while running, and activate at
     once the types they create (`planner.knowledge.live`); not in deterministic mode, whose
-    runs must not depend on what others post meanwhile. On: planners at once on one base took
-    fewer rollouts with it than sharing through fits only, and a planner alone is unchanged
-    but for one background poll per rollout (BENCHMARKS.md, issue 23)."""
+    runs must not depend on what others post meanwhile."""
     live_every_rollouts: int = 1
     """Rollouts between two polls for other planners' points (with `live_points`)."""
     live_idle_max: int = 8
@@ -355,45 +265,22 @@ class KnowledgeConfig:
     out, doubling the rollouts between them up to this many; one that brings something goes
     back to `live_every_rollouts` (`planner.knowledge.polls`). 1: every `live_every_rollouts`
     rollouts. Each poll is a request read in a thread of the planner's process, which holds the
-    GIL meanwhile, and a planner alone polls for nothing. 8, with `post_linger_ms`: judged on
-    the development suite by the background threads' CPU time (`dev-quiet` in BENCHMARKS.md),
-    which the wall clock alone could not resolve (`dev-idle`)."""
+    GIL meanwhile, and a planner alone polls for nothing."""
     live_hints: int = 8
     """With `live_points`, the newest other planners' feasible points kept per type, scored as
     candidates by this planner's MPF maximisation (each run's also merged into one, its latest
     chain of passed decisions) and preferred among the near-best ones, so that a binding another
     planner found is tried here before a fit has taken it in
     (`planner.knowledge.live.PeerHints`; where the planner maximises MPF itself, the
-    default `--suggest-in planner`); 0: none. On: planners at once took fewer rollouts
-    with them than without, at 4 and at 8 at once; a planner alone gets none
-    (BENCHMARKS.md, issue 23)."""
+    default `--suggest-in planner`); 0: none."""
     live_hints_limit: int = 32
     """The most such candidates one suggestion scores (the newest first)."""
-    live_hints_whole_only: bool = False
-    """Prefer only a run's whole chain (it passed every constraint of the request); the other
-    hints are scored only. Off: at 8 at once it took more rollouts on desk, fewer on pack."""
     follow_found: bool = True
     """Follow, as the next rollout, each binding list another run of this task found and
     stored in the knowledge base (`planner.knowledge.found.FoundBindings`): those found before
     this run, read when it starts, and with `live_points` (not in deterministic mode) those
     found while it runs; this run stores its own. A task is known by its name and plan
-    skeleton (a predecessor's bindings are not followed): a planner alone on a fresh base
-    gets none. On: planners of one task at once took fewer rollouts with it, and a planner
-    alone is unchanged (BENCHMARKS.md, issue 23)."""
-    stored_hints: int = 0
-    """The newest feasible points of each type met before this run, read from the knowledge
-    base when the run starts and scored as candidates as other planners' are (`live_hints`),
-    each earlier rollout's passed decisions merged into one chain: a binding an earlier task
-    found is tried before a fit rates its narrow neighbourhood high; 0: none."""
-    stored_hints_prefer: str = "all"
-    """Which stored hints win among the near-best candidates, as other planners' do: `all`,
-    `whole` (a stored rollout's chain that passed every type of the request and gives every
-    free variable) or `none` (scored, and starting the maximiser's search, only)."""
-    live_pending: bool = False
-    """With `live_points`, also report this planner's pending suggestions to the service and
-    keep its own away from the other planners' (`planner.knowledge.live.PendingExchange`).
-    Off: each planner needs a feasible binding of its own, and pushing it off the placements
-    the others are about to try cost pack rollouts (BENCHMARKS.md, issue 23)."""
+    skeleton (a predecessor's bindings are not followed)."""
 
     def __post_init__(self) -> None:
         _at_least(
@@ -406,41 +293,10 @@ class KnowledgeConfig:
             live_idle_max=1,
             live_hints=0,
             live_hints_limit=1,
-            stored_hints=0,
             prior_counts=0.0,
         )
-        if self.stored_hints_prefer not in STORED_HINTS_PREFER:
-            raise ConfigError(
-                f"knowledge.stored_hints_prefer is one of {', '.join(STORED_HINTS_PREFER)},"
-                f" not {self.stored_hints_prefer!r}"
-            )
-        if self.prior_choice_rates and self.prior_counts == 0:
-            raise ConfigError("knowledge.prior_choice_rates needs knowledge.prior_counts > 0")
         if self.match_chunk > 1000:
             raise ConfigError("knowledge.match_chunk must be at most 1000 (the contract's)")
-        if not 0.0 < self.model_evidence_prior < 1.0:
-            raise ConfigError("knowledge.model_evidence_prior must lie strictly between 0 and 1")
-        if self.size_inputs and not self.movable_names:
-            raise ConfigError(
-                "knowledge.size_inputs needs knowledge.movable_names: two boxes' size inputs"
-                " would share one label"
-            )
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """How the simulator checks a binding (`planner.sim`). Unlike a task file's `settings`,
-    which say how thorough a check must be for that task, these are policies of the checks
-    themselves, the same for every task, so that a variant of them is a configuration."""
-
-    ik_collided_stop: int = 0
-    """A failing IK search gives up after this many restarts reached the pose but collided
-    (0: it runs all of the task's `ik_restarts`). Restarts near the first guess that collide
-    say the pose is blocked; more of them rarely find a free arm and cost most of the IK
-    time of a guided rollout."""
-
-    def __post_init__(self) -> None:
-        _at_least(self, ik_collided_stop=0)
 
 
 @dataclass(frozen=True)
@@ -453,7 +309,6 @@ class PlanConfig:
     quasi_random: QuasiRandomConfig = field(default_factory=QuasiRandomConfig)
     optuna_tpe: OptunaTpeConfig = field(default_factory=OptunaTpeConfig)
     knowledge: KnowledgeConfig = field(default_factory=KnowledgeConfig)
-    sim: SimConfig = field(default_factory=SimConfig)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         return dataclasses.asdict(self)
@@ -494,23 +349,14 @@ PRESETS: Mapping[str, Preset] = {
             "search.outlook_widening": False,
             "search.outlook_selection": False,
             "search.hopeless_widening": False,
-            "search.leave_hopeless": False,
-            "search.hopeless_choices": False,
-            "search.outlook_exhausted": "off",
             "search.restart_unit": 0,
             "search.restart_redraws": False,
             "knowledge.square_grasps": False,
             "knowledge.grasp_symmetry": False,
-            "knowledge.metric_frames": False,
             "knowledge.relative_pairs": False,
             "knowledge.periodic_headings": False,
-            "knowledge.body_sizes": False,
             "knowledge.movable_names": True,
-            "knowledge.size_inputs": False,
-            "knowledge.prior_base_rate": False,
             "knowledge.prior_counts": 0.0,
-            "knowledge.prior_choice_rates": False,
-            "knowledge.model_evidence": False,
             "knowledge.follow_found": False,
         },
     ),

@@ -117,10 +117,10 @@ def _table(rows: list[tuple[int, str, PlanResult, PlanResult, PlanResult]]) -> T
     for seed, _, learn, guided, baseline in rows:
         table.add_row(
             str(seed),
-            f"{learn.rollouts_spent} ({learn.points_posted} pts)",
+            f"{learn.rollouts_spent} ({learn.knowledge.points_posted} pts)",
             _cell(guided),
             _cell(baseline),
-            f"{guided.types_activated} types, {guided.points_activated} pts",
+            f"{guided.knowledge.types_activated} types, {guided.knowledge.points_activated} pts",
         )
     return table
 

@@ -22,7 +22,8 @@ from typing import Any
 import numpy as np
 
 from contract.models import Value
-from planner.config import PlanConfig, SimConfig, method_config
+from planner.config import PlanConfig, method_config
+from planner.knowledge.stats import KnowledgeStats
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
@@ -96,30 +97,13 @@ class PlanResult:
     # wall_s: from loading the world to the search's end, the time to the binding, for every method
     wall_s: float
     sim_s: float
-    kb_s: float
     sample_s: float
     bindings: dict[str, Value] | None
     best_depth: float
     time_budget_s: float | None = None  # the run's budget in seconds, if it had one
     timed_out: bool = False  # stopped by time_budget_s before the binding and the rollout cap
-    types_activated: int = 0
-    points_activated: int = 0
-    types_active: int = 0
-    types_prematched: int = 0  # of types_activated, found before the search met their failure
-    points_posted: int = 0
-    suggestions: int = 0
-    local_suggestions: int = 0
-    model_fetches: int = 0
-    kb_errors: int = 0
-    live_points: int = 0  # other planners' points taken in during the run (live sharing)
-    live_types: int = 0  # types other planners created during the run, activated from them
-    pending_shared: int = 0  # other planners' pending suggestions this run was kept away from
-    peer_hints: int = 0  # other planners' feasible points its suggestions scored as candidates
-    stored_hints: int = 0  # earlier runs' feasible points read as candidates at the start
-    found_followed: int = 0  # other runs' found bindings it followed from the root
-    explored: int = 0  # continuous values cp-bo took space-filling (`cp_bo.explore_below`)
-    kb_parts: dict[str, float] = field(default_factory=dict)  # kb_s by what it waited for
-    suggest_cpu_s: float = 0.0  # the planner thread's CPU time in suggestions (with fetches)
+    # What the knowledge session did (zeros for a method without one)
+    knowledge: KnowledgeStats = field(default_factory=KnowledgeStats)
     # CPU time of this process's other threads during the search (posting points, polls, model
     # refreshes): each holds the GIL while it runs, so the search waits for it
     background_cpu_s: float = 0.0
@@ -129,17 +113,23 @@ class PlanResult:
     config: dict[str, dict[str, Any]] = field(default_factory=dict)  # the whole PlanConfig
 
     def to_json(self) -> dict[str, Any]:
-        """The `cpkb plan --json` dict."""
+        """The `cpkb plan --json` dict: flat, the knowledge session's counts beside the run's
+        (its events are in `notes`)."""
         out = asdict(self)
+        knowledge = out.pop("knowledge")
+        del knowledge["events"]
+        knowledge["kb_parts"] = {
+            part: round(s, 6) for part, s in sorted(knowledge["kb_parts"].items())
+        }
+        knowledge["suggest_cpu_s"] = round(knowledge["suggest_cpu_s"], 6)
+        out.update(knowledge)
         for key in ("wall_s", "sim_s", "kb_s", "sample_s", "best_depth"):
             out[key] = round(out[key], 6)
         return out
 
 
-def load_world(
-    task: str | Path | BindingWorld, seed: int, *, gui: bool = False, sim: SimConfig | None = None
-) -> BindingWorld:
-    """A world for `task`, its checks under `sim`; analytic worlds need no simulator."""
+def load_world(task: str | Path | BindingWorld, seed: int, *, gui: bool = False) -> BindingWorld:
+    """A world for `task`; analytic worlds need no simulator."""
     if not isinstance(task, str | Path):
         return task
     name = str(task)
@@ -149,7 +139,7 @@ def load_world(
         return analytic_world(name.removeprefix(ANALYTIC_PREFIX))
     from planner import sim as simulator
 
-    return simulator.load_world(task, seed=seed, gui=gui, sim=sim)
+    return simulator.load_world(task, seed=seed, gui=gui)
 
 
 def seed_everything(seed: int) -> None:
@@ -197,7 +187,7 @@ def run_plan(
 def _plan(request: PlanRequest, progress: Callable[[Progress], None] | None) -> PlanResult:
     seed_everything(request.seed)
     started = time.perf_counter()
-    world = load_world(request.task, request.seed, gui=request.gui, sim=request.config.sim)
+    world = load_world(request.task, request.seed, gui=request.gui)
     try:
         if sampler_registry.uses_knowledge(request.method):
             return _plan_with_knowledge(request, world, started, progress)
@@ -253,25 +243,7 @@ def _plan_with_knowledge(
         stats = session.stats
         return replace(
             result,
-            kb_s=stats.kb_s,
-            kb_parts={part: round(s, 6) for part, s in sorted(stats.kb_parts.items())},
-            suggest_cpu_s=round(stats.suggest_cpu_s, 6),
-            types_activated=stats.types_activated,
-            points_activated=stats.points_activated,
-            types_active=stats.types_active,
-            types_prematched=stats.prematched,
-            points_posted=session.points_posted,
-            suggestions=stats.suggestions,
-            local_suggestions=stats.local_suggestions,
-            model_fetches=stats.model_fetches,
-            kb_errors=stats.errors + session.poster.failed,
-            live_points=stats.live_points,
-            live_types=stats.live_types,
-            pending_shared=stats.pending_shared,
-            peer_hints=stats.peer_hints,
-            stored_hints=stats.stored_hints,
-            found_followed=stats.found_followed,
-            explored=stats.explored,
+            knowledge=stats,
             kb=request.kb,
             run=session.run,
             notes=[*result.notes, *(f"{message} (x{n})" for message, n in stats.events.items())],
@@ -322,7 +294,6 @@ def _search(
         rollouts_spent=outcome.rollouts_spent,
         wall_s=time.perf_counter() - started,
         sim_s=outcome.sim_s,
-        kb_s=0.0,
         sample_s=outcome.sample_s,
         bindings=outcome.bindings,
         best_depth=outcome.best_depth,

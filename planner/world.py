@@ -77,12 +77,9 @@ class WorldGeometry:
     the declared domains. Tuples, not dicts: a geometry keys the process's cache of graphs.
 
     `body_sizes`: each movable body's box `(size_x, size_y, size_z)`; its footprint
-    `(size_x, size_y)` gives the symmetries of its grasps. `placement_extents`: each placement
-    decision's half extents `(half_x, half_y)` that its seed's x and y span about its region's
-    centre."""
+    `(size_x, size_y)` gives the symmetries of its grasps."""
 
     body_sizes: tuple[tuple[str, tuple[float, float, float]], ...] = ()
-    placement_extents: tuple[tuple[str, Extents], ...] = ()
 
     def size(self, body: str) -> tuple[float, float, float] | None:
         return dict(self.body_sizes).get(body)
@@ -91,21 +88,20 @@ class WorldGeometry:
         size = self.size(body)
         return (size[0], size[1]) if size is not None else None
 
-    def extents(self, var: str) -> Extents | None:
-        return dict(self.placement_extents).get(var)
-
 
 class BindingWorld(Protocol):
     """A task to bind: its skeleton and a way to execute transition layers.
 
     `state` is opaque to the search: the world returns it with each successful transition
     and restores it before executing the next layer from that tree node. `geometry` is what it
-    tells the encodings (`WorldGeometry()` for none).
+    tells the encodings (`WorldGeometry()` for none). `culprit_candidates`: every body a failed
+    check may name as its culprit (none for a world that names none).
     """
 
     name: str
     skeleton: Skeleton
     geometry: WorldGeometry
+    culprit_candidates: tuple[str, ...]
 
     def initial_state(self) -> object: ...
 

@@ -154,8 +154,6 @@ class PendingRow(Base):
     x: Mapped[dict[str, Any]] = mapped_column(JSON)
     # [[type_id, [[label, variable], ...]], ...], as `surrogate.pending.PendingEntry.binds`.
     binds: Mapped[list[Any]] = mapped_column(JSON)
-    # The planner run that reported it (the pending exchange); None: a suggestion served here.
-    owner: Mapped[str | None] = mapped_column(String(128))
     expires_at: Mapped[datetime] = mapped_column(UtcDateTime)
 
 

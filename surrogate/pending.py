@@ -7,10 +7,6 @@ of its constraint types at its values, or when it expires (`ttl_s`).
 `Pending` is the interface the suggestion core and the service's engine use; `PendingBook`
 keeps the entries in this process, and the service's replicas on one PostgreSQL share theirs
 through the database (`server.surrogates.pending_db.DatabasePendingBook`).
-
-Planners that suggest in their own processes keep their own books and report what is pending in
-them (`put`, under their run's name as owner); each reads back the other owners' entries
-(`others`), so that planners sharing a knowledge base are pushed apart wherever they suggest.
 """
 
 from __future__ import annotations
@@ -33,7 +29,6 @@ class PendingEntry:
     x: dict[str, Value]  # the search variables of the suggestion (free and fixed)
     binds: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # (type_id, ((label, var), ...))
     expires: float
-    owner: str | None = None  # the run that reported it (`put`); None: served by this book
 
     @property
     def type_ids(self) -> frozenset[str]:
@@ -43,12 +38,8 @@ class PendingEntry:
 Binds = Sequence[tuple[str, Mapping[str, str]]]
 
 
-def _entry(
-    x: Mapping[str, Value], binds: Binds, expires: float, owner: str | None = None
-) -> PendingEntry:
-    return PendingEntry(
-        dict(x), tuple((t, tuple(sorted(b.items()))) for t, b in binds), expires, owner
-    )
+def _entry(x: Mapping[str, Value], binds: Binds, expires: float) -> PendingEntry:
+    return PendingEntry(dict(x), tuple((t, tuple(sorted(b.items()))) for t, b in binds), expires)
 
 
 class Pending(Protocol):
@@ -63,12 +54,6 @@ class Pending(Protocol):
     def answered(self, kb: str, type_id: str, points: Sequence[Mapping[str, Value]]) -> int: ...
 
     def count(self, kb: str) -> int: ...
-
-    def put(
-        self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]
-    ) -> None: ...
-
-    def others(self, kb: str, type_ids: frozenset[str], owner: str) -> list[PendingEntry]: ...
 
 
 SAME_ATOL = 1e-9
@@ -132,27 +117,6 @@ class PendingBook:
             dropped = len(entries) - len(keep)
             self._by_kb[kb] = keep
             return dropped
-
-    def entries(self, kb: str) -> list[PendingEntry]:
-        """The live entries of `kb`, oldest first."""
-        with self._lock:
-            return list(self._live(kb))
-
-    def put(
-        self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]
-    ) -> None:
-        """What `owner` (a planner's run) has pending now, (x, binds) each: it replaces what the
-        owner put before (an empty list withdraws it all)."""
-        expires = self.clock() + self.ttl_s
-        new = [_entry(x, binds, expires, owner) for x, binds in entries]
-        with self._lock:
-            kept = [e for e in self._live(kb) if e.owner != owner]
-            self._by_kb[kb] = [*kept, *new][-MAX_PER_KB:]
-
-    def others(self, kb: str, type_ids: frozenset[str], owner: str) -> list[PendingEntry]:
-        """Live entries of `kb` sharing a type with `type_ids` that `owner` did not put."""
-        with self._lock:
-            return [e for e in self._live(kb) if e.owner != owner and e.type_ids & type_ids]
 
     def count(self, kb: str) -> int:
         with self._lock:

@@ -9,9 +9,7 @@ that a planner, which only loads served snapshots, never imports torch or gpytor
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any, Protocol
 
 import numpy as np
@@ -42,38 +40,28 @@ class FeasibilityPredictor(Protocol):
 class PriorPredictor:
     """The stated prior for a type with one class only or fewer than MIN_POINTS points.
 
-    p(x) = c + 2 weight ((1 - c) max_j k(x, feasible_j) - c max_j k(x, infeasible_j)), with a
-    squared exponential k of lengthscale `lengthscale * sqrt(D)`: the centre `c` far from any
-    data, low next to a known infeasible point, high next to a known feasible one. The centre
-    is 0.5 (no opinion) unless `with_base_rate` sets it to the type's rate of feasible points.
+    p(x) = 0.5 + weight (max_j k(x, feasible_j) - max_j k(x, infeasible_j)), with a squared
+    exponential k of lengthscale `lengthscale * sqrt(D)`: no opinion far from any data, low
+    next to a known infeasible point, high next to a known feasible one.
 
-    With `strength` s > 0 the points are counted instead (`counted`): p(x) = (s c + A) /
+    With `strength` s > 0 the points are counted instead (`counted`): p(x) = (s / 2 + A) /
     (s + A + B), A and B the sums of k(x, .) over the feasible and the infeasible points, a
     Beta prior of s pseudo-points updated by kernel-weighted counts. Evidence then grows with
     the number of points: the nearest-point form rates a choice that failed once as low as one
     that failed twenty times (0.05 both), the counted one 1/3 against 1/21 (s = 2).
-
-    Counted and with `choices` (`by_choice`), the centre depends on the row's categorical
-    choices: `c r_k / r_best`, r_k the Beta-smoothed rate `(s c + a_k) / (s + n_k)` of the
-    points with the row's choices k (c for choices no point has), r_best the best such rate
-    among the possible choices.
     """
 
     feasible: np.ndarray  # (a, D)
     infeasible: np.ndarray  # (b, D)
     weight: float = 0.45  # how far the prior moves P(feasible) away from 0.5 at a point
     lengthscale: float = 0.1  # its reach in the unit cube, per sqrt(D)
-    center: float = 0.5
     strength: float = 0.0
-    # Per categorical variable: its columns in Z and its distinct choice rows `(k, width)`.
-    choices: tuple[tuple[slice, np.ndarray], ...] = ()
 
     def proba(self, z: np.ndarray) -> np.ndarray:
-        ell, c = self.lengthscale, self.center
+        ell, c = self.lengthscale, 0.5
         if self.strength > 0:
-            centre = self._choice_centres(z) if self.choices else c
             up, down = _mass(z, self.feasible, ell), _mass(z, self.infeasible, ell)
-            return (self.strength * centre + up) / (self.strength + up + down)
+            return (self.strength * c + up) / (self.strength + up + down)
         up, down = _reach(z, self.feasible, ell), _reach(z, self.infeasible, ell)
         return c + 2 * self.weight * ((1.0 - c) * up - c * down)
 
@@ -95,55 +83,6 @@ class PriorPredictor:
             feasible=joined(self.feasible, feasible),
             infeasible=joined(self.infeasible, infeasible),
         )
-
-    def by_choice(self, choices: tuple[tuple[slice, np.ndarray], ...]) -> PriorPredictor:
-        """This prior with its centre set per categorical choice (see the class): a grasp
-        whose every placement failed is rated low at placements far from those failures too,
-        where the kernel alone leaves it at the centre. Relative to the best choice, so the
-        best keeps the centre: a rate per type lowered every place of it, and a search then
-        left its nodes before trying their best choice (`knowledge.prior_base_rate`)."""
-        return dataclasses.replace(self, choices=choices)
-
-    def _choice_centres(self, z: np.ndarray) -> np.ndarray:
-        """`(n,)` the centre of each row of `z`, by the rate of its categorical choices."""
-        c = self.center
-        if self._choice_rates is None:
-            return np.full(len(z), c)
-        columns, keys, rates, best = self._choice_rates
-        same = same_rows(z[:, columns], keys)
-        row_rates = np.where(same.any(axis=1), rates[same.argmax(axis=1)], c)
-        return c * row_rates / best
-
-    @cached_property
-    def _choice_rates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
-        """The choices' columns in Z, the distinct choice rows of the points `(k, w)`, their
-        rates `(k,)` and the best rate: a function of the points alone, asked for every batch
-        of candidates a suggestion scores. None where the centre is `center` everywhere."""
-        columns = np.concatenate([np.arange(s.start, s.stop) for s, _ in self.choices])
-        points = np.vstack([self.feasible, self.infeasible])
-        if len(points) == 0 or len(columns) == points.shape[1]:
-            # With nothing but choices as inputs, the kernel's counts are the choice's own
-            # already: a centre set by them would count every point twice.
-            return None
-        c, s = self.center, self.strength
-        keys, inverse = np.unique(points[:, columns], axis=0, return_inverse=True)
-        feasible = np.bincount(inverse.ravel()[: len(self.feasible)], minlength=len(keys))
-        counts = np.bincount(inverse.ravel(), minlength=len(keys))
-        rates = (s * c + feasible) / (s + counts)
-        possible = math.prod(len(rows) for _, rows in self.choices)
-        best = max(rates.max(), c) if len(keys) < possible else rates.max()
-        return columns, keys, rates, best
-
-    def with_base_rate(self, feasible: int = 0, infeasible: int = 0) -> PriorPredictor:
-        """This prior centred on its type's rate of feasible points, Laplace-smoothed:
-        `(a + 1) / (n + 2)` of the prior's points plus `feasible` and `infeasible` more. A type
-        whose every point so far failed is then rated lower the more often it failed, where a
-        prior centred on 0.5 rates any place far from its failures as a coin flip, however many
-        there were (a placement node that keeps failing was left only once its space was full
-        of failures)."""
-        a = len(self.feasible) + feasible
-        n = a + len(self.infeasible) + infeasible
-        return dataclasses.replace(self, center=(a + 1.0) / (n + 2.0))
 
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
         """sqrt(1 - k^2) for the largest similarity k to any point: the posterior sd of a
@@ -217,24 +156,6 @@ class RecentPoints:
         points = np.vstack([self.feasible, self.infeasible])
         near = _unexplained(_nearest_reach(z, points, self.lengthscale))
         return np.minimum(self.base.uncertainty(z), near)
-
-
-@dataclass(frozen=True)
-class Mixture:
-    """`weight` times one predictor's answer plus the rest times another's: a Bayesian model
-    average of two predictors of one type, `weight` the first's posterior probability."""
-
-    first: FeasibilityPredictor
-    second: FeasibilityPredictor
-    weight: float
-
-    def proba(self, z: np.ndarray) -> np.ndarray:
-        w = self.weight
-        return w * self.first.proba(z) + (1.0 - w) * self.second.proba(z)
-
-    def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        w = self.weight
-        return w * self.first.uncertainty(z) + (1.0 - w) * self.second.uncertainty(z)
 
 
 @dataclass(frozen=True)

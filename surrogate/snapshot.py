@@ -71,7 +71,6 @@ def dump(predictor: FeasibilityPredictor) -> Snapshot:
                 "kind": "prior",
                 "feasible": _array(predictor.feasible),
                 "infeasible": _array(predictor.infeasible),
-                "center": predictor.center,
             }
         case RecentPoints():
             return {
@@ -123,7 +122,6 @@ def load(snapshot: Any, where: str = "predictor") -> FeasibilityPredictor:
             return PriorPredictor(
                 _unarray(snapshot["feasible"], f"{where}.feasible"),
                 _unarray(snapshot["infeasible"], f"{where}.infeasible"),
-                center=float(snapshot.get("center", 0.5)),
             )
         if kind == "recent":
             return RecentPoints(

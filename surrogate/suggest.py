@@ -118,7 +118,6 @@ def suggest(
     *,
     key: str,
     config: OptimizerConfig,
-    shared: Sequence[Mapping[str, Value]] = (),
     hints: Sequence[Mapping[str, Value]] = (),
     preferred: int = 0,
     record: bool = True,
@@ -126,13 +125,11 @@ def suggest(
     """The MPF maximiser over `request.space` for its constraints (a space-filling point when
     there are none), away from `exclude` and from the suggestions pending in `book` under `key`;
     the answer's points are recorded there as pending (unless `record` is false: a caller
-    that may not write is answered without changing what others are told). `shared`: more
-    pending points, in this request's variables, kept away from but not recorded (other
-    planners'). `hints`: points in this request's variables that the maximiser scores besides
-    its own candidates, the first `preferred` of them preferred
-    (`surrogate.optimize.maximize_batch`). Raises InvalidRequest naming the field,
-    SpaceExhausted when a finite space is wholly excluded, and whatever `source` raises for an
-    unknown type."""
+    that may not write is answered without changing what others are told). `hints`: points in
+    this request's variables that the maximiser scores besides its own candidates, the first
+    `preferred` of them preferred (`surrogate.optimize.maximize_batch`). Raises InvalidRequest
+    naming the field, SpaceExhausted when a finite space is wholly excluded, and whatever
+    `source` raises for an unknown type."""
     _check_lookahead(request)
     models: dict[str, TypeModel] = {}
     terms: list[ConstraintTerm] = []
@@ -146,7 +143,7 @@ def suggest(
                 constraint.type_id, model.predictor, model.space, constraint.bind, request.fixed
             )
         )
-    pending = [*book.for_request(key, frozenset(models)), *shared]
+    pending = book.for_request(key, frozenset(models))
     seed = request.seed if request.seed is not None else secrets.randbits(31)
     try:
         if terms:

@@ -181,13 +181,14 @@ def _summary(result: Any) -> None:
     console.print(
         f"{result.task} with {result.method} (seed {result.seed}): {verdict} after "
         f"[bold]{result.rollouts}[/] rollouts in {result.wall_s:.2f} s "
-        f"(simulation {result.sim_s:.2f} s, knowledge base {result.kb_s:.2f} s)"
+        f"(simulation {result.sim_s:.2f} s, knowledge base {result.knowledge.kb_s:.2f} s)"
     )
     if result.kb is not None:
+        stats = result.knowledge
         console.print(
-            f"knowledge base '{result.kb}': {result.types_activated} types activated from earlier "
-            f"runs with {result.points_activated} points; {result.types_active} types active; "
-            f"{result.points_posted} points posted; {result.suggestions} suggestions"
+            f"knowledge base '{result.kb}': {stats.types_activated} types activated from earlier "
+            f"runs with {stats.points_activated} points; {stats.types_active} types active; "
+            f"{stats.points_posted} points posted; {stats.suggestions} suggestions"
         )
     if result.bindings:
         console.print("bindings: " + json.dumps(result.bindings))

@@ -1,5 +1,5 @@
 """Failed transitions as causal graphs with task-independent labels."""
 
-from planner.failures.graphs import Encodings, FailureGraph, failure_graph, size_constants
+from planner.failures.graphs import Encodings, FailureGraph, failure_graph
 
-__all__ = ["Encodings", "FailureGraph", "failure_graph", "size_constants"]
+__all__ = ["Encodings", "FailureGraph", "failure_graph"]

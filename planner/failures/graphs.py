@@ -26,25 +26,15 @@ tells (`WorldGeometry`, in metres), never from a list of the shipped scenes' bod
   footprint is square (within `SQUARE_TOLERANCE`) all four side grasps are one (all 60 shelf
   placements tried with `front` and `right` agreed). The top grasp stays apart. Switches:
   `square_grasps` (square footprints), `grasp_symmetry` (opposite faces of any box).
-- A placement that declares a frame gets its seed's half extents in metres (`scale`), so that
-  the relative pose of two placements is measured in metres (`surrogate.encoding`); with
-  `relative_pairs`, a type holding two placements of one region sees only that relative pose.
+- With `relative_pairs`, a type holding two placements of one region sees only their relative
+  pose (`surrogate.encoding`).
 - A placement's heading is an angle: with `periodic_headings` its model sees it on a circle,
   where the two ends of the seed's range are one heading (`surrogate.encoding`).
-- A movable body's vertex can be labelled with its size to the millimetre (`body_sizes`), so
-  that a type is about one object, not about whatever another task calls by the same name: a
-  task that reuses `body` for a box of other dimensions meets other constraints, and its
-  points would mislead the first task's model.
-- Or a movable body's vertex can be labelled `movable` instead of its name (`movable_names`
+- A movable body's vertex can be labelled `movable` instead of its name (`movable_names`
   off): a name says nothing about a box's geometry, and two boxes of a task are as alike as
   the same two names in another, so that placing one box next to another is one constraint
   whichever boxes they are (the second box beside the first and the third beside the second
   of a pack).
-- Or a movable body's size can be an input of the type's model (`size_inputs`): a decision
-  vertex `#size:<body>` below the body's vertex, bound to the constant `size_var(body)`, which
-  every point records and every suggestion fixes. Boxes of one name then share a type, and the
-  fit learns from the points of both how far what one taught carries to the other, where an
-  exact label cuts it off and a plain name carries it whole.
 """
 
 from __future__ import annotations
@@ -61,24 +51,7 @@ PLACE_KINDS = ("#pose",)
 GRASP_KINDS = ("#dir",)
 SQUARE_TOLERANCE = 1e-3
 """Metres by which a footprint's sides may differ and it still counts as square."""
-SIZE_MAX = 0.5
-SIZE_DOMAIN = ContinuousDomain(low=[0.0, 0.0, 0.0], high=[SIZE_MAX] * 3)
-"""A body's size `(x, y, z)` in metres as a model input: one domain for every body, so that the
-same failure of boxes of different sizes is one type. A body larger than `SIZE_MAX` in any
-dimension (beyond what a tabletop arm carries) keeps its name alone."""
-SIZE_LABEL = "#size:"
 MOVABLE_LABEL = "movable"
-
-
-def size_var(body: str) -> str:
-    """The constant a size vertex is bound to: not a decision of the skeleton, the same value in
-    every binding of a task (`size_constants`)."""
-    return f"size({body})"
-
-
-def size_constants(geometry: WorldGeometry) -> dict[str, list[float]]:
-    """The values of the size constants of a world's movable bodies."""
-    return {size_var(body): list(size) for body, size in geometry.body_sizes}
 
 
 @dataclass(frozen=True)
@@ -89,17 +62,9 @@ class Encodings:
     geometry: WorldGeometry = field(default_factory=WorldGeometry)
     square_grasps: bool = True
     grasp_symmetry: bool = True
-    metric_frames: bool = True
     relative_pairs: bool = False
     periodic_headings: bool = False
-    body_sizes: bool = False
-    size_inputs: bool = False
     movable_names: bool = True
-
-    def __post_init__(self) -> None:
-        if self.size_inputs and not self.movable_names:
-            # Two boxes' size vertexes would both be `#size:movable`, one decision label twice.
-            raise ValueError("size inputs need movable bodies labelled by name")
 
 
 @dataclass(frozen=True)
@@ -238,13 +203,10 @@ def encoded_domains(
     out: dict[str, Domain] = {}
     for var, decision in chosen.items():
         domain = decision.domain
-        extents = geometry.extents(var)
         if var in held and isinstance(domain, CategoricalDomain):
             domain = held_grasp_domain(domain, square)
         elif isinstance(domain, ContinuousDomain) and domain.heading is not None:
             update: dict[str, object] = {}
-            if encodings.metric_frames and extents is not None:
-                update["scale"] = list(extents)
             if encodings.relative_pairs:
                 update["relative_only"] = True
             if encodings.periodic_headings:
@@ -312,52 +274,20 @@ def failure_graph(
             builder.edge(builder.decision(placing), body_id, "at")
     chain_decisions(builder)
     encodings = encodings if encodings is not None else Encodings()
-    if encodings.body_sizes:
-        _label_sizes(builder.nodes, encodings.geometry)
     if not encodings.movable_names:
         _label_movable(builder.nodes, encodings.geometry)
     domains = encoded_domains(skeleton, check.call, builder.decisions, encodings)
     bind = label_decisions(skeleton, builder.nodes, builder.decisions, domains)
-    if encodings.size_inputs and bind:
-        # A graph with no decision stays one the search cannot act on: no size makes it one.
-        bind |= _size_inputs(builder, encodings.geometry)
     graph = _task_independent_ids(builder.nodes, builder.edges)
     return FailureGraph(graph, bind, (transition_index, call_index), body)
 
 
-def _label_sizes(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
-    """Each movable body's context vertex labelled `name@XxYxZmm` (see `Encodings.body_sizes`)."""
-    for node_id, node in nodes.items():
-        size = geometry.size(node.label) if node.role == "context" else None
-        if size is not None:
-            mm = "x".join(str(round(v * 1000)) for v in size)
-            nodes[node_id] = node.model_copy(update={"label": f"{node.label}@{mm}mm"})
-
-
 def _label_movable(nodes: dict[str, Node], geometry: WorldGeometry) -> None:
-    """Each movable body's context vertex labelled `movable` in place of its name, a size label
-    kept (see `Encodings.movable_names`)."""
+    """Each movable body's context vertex labelled `movable` in place of its name (see
+    `Encodings.movable_names`)."""
     for node_id, node in nodes.items():
-        name = node_id.removeprefix("c:")
-        if node.role == "context" and geometry.size(name) is not None:
-            label = MOVABLE_LABEL + node.label.removeprefix(name)
-            nodes[node_id] = node.model_copy(update={"label": label})
-
-
-def _size_inputs(builder: _Builder, geometry: WorldGeometry) -> dict[str, str]:
-    """A size decision vertex under each movable body's context vertex (`Encodings.size_inputs`),
-    and its binding to the body's size constant."""
-    bind: dict[str, str] = {}
-    for node_id, node in list(builder.nodes.items()):
-        size = geometry.size(node.label) if node.role == "context" else None
-        if size is None or max(size) > SIZE_MAX:
-            continue
-        label = f"{SIZE_LABEL}{node.label}"
-        size_id = f"d:{size_var(node.label)}"
-        builder.nodes[size_id] = Node(id=size_id, role="decision", label=label, domain=SIZE_DOMAIN)
-        builder.edge(node_id, size_id, "size")
-        bind[label] = size_var(node.label)
-    return bind
+        if node.role == "context" and geometry.size(node_id.removeprefix("c:")) is not None:
+            nodes[node_id] = node.model_copy(update={"label": MOVABLE_LABEL})
 
 
 def _task_independent_ids(nodes: dict[str, Node], edges: list[Edge]) -> Graph:

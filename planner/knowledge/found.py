@@ -14,10 +14,10 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any
 
 from contract.bindings import BindingIn, BindingsPage
 from contract.models import MAX_LABEL, Value
+from planner.knowledge.client import KnowledgeClient
 from planner.knowledge.polls import PollSchedule
 from planner.skeleton import Skeleton
 
@@ -29,7 +29,7 @@ def skeleton_digest(skeleton: Skeleton) -> str:
 class FoundBindings:
     def __init__(
         self,
-        client: Any,
+        client: KnowledgeClient,
         kb: str,
         *,
         task: str,

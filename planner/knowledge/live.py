@@ -7,14 +7,8 @@ types this run watches (its active types, and the types of graphs prematch found
 folds them into its models as it does its own points. A watched absent type that comes back with
 points was created by another planner meanwhile: the session activates it at once.
 
-The session also shares what it has pending (`PendingExchange`): with each poll it reports the
-suggestions it served that no point has answered yet and reads back the other planners', which
-its own suggestions then keep away from, as the service's `suggest` keeps concurrent requests
-apart. When it closes it withdraws what is left.
-
 The other planners' feasible points are also kept apart (`PeerHints`), a few per type, as
-candidates for this planner's MPF maximisation (and, with `knowledge.stored_hints`, those that
-earlier runs stored, read once when the run starts): a fresh point changes its model only within a
+candidates for this planner's MPF maximisation: a fresh point changes its model only within a
 short reach (`surrogate.predictors.RecentPoints`), which the maximiser's raw samples rarely land in,
 so without them a binding another planner has just found stays unseen here until a fit has
 taken it in, and with several planners on one service the fits lag.
@@ -29,11 +23,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 
-from contract.models import Constraint, LivePoint, PendingPoint, PointsSinceOut, Value
+from contract.models import Constraint, LivePoint, PointsSinceOut, Value
 from planner.knowledge.polls import PollSchedule
 
 PollFn = Callable[[list[str], int | None], PointsSinceOut]
-ExchangeFn = Callable[[list[PendingPoint], list[str]], list[PendingPoint]]
 MAX_PAGES = 8  # pages one poll reads before it hands over what it has
 
 
@@ -130,84 +123,23 @@ class _Poll:
         return answer.cursor, points
 
 
-class PendingExchange:
-    """This run's pending suggestions out, the other runs' back: one request every
-    `every_rollouts` rollouts, in the background if asked, one at a time."""
-
-    def __init__(
-        self, exchange: ExchangeFn, *, every_rollouts: int = 1, background: bool = True
-    ) -> None:
-        self._exchange = exchange
-        self.every_rollouts = every_rollouts
-        self._executor = (
-            ThreadPoolExecutor(1, thread_name_prefix="cpkb-pending") if background else None
-        )
-        self._in_flight: Future[list[PendingPoint]] | None = None
-        self._sent_at: int | None = None
-        self._reported = False
-        self.exchanges = 0
-
-    def tick(
-        self, rollout: int, served: Callable[[], list[PendingPoint]], type_ids: list[str]
-    ) -> list[PendingPoint] | None:
-        """The other runs' pending points if an exchange has landed since (None: no news), and
-        a new exchange if one is due (`served` is asked for this run's only then)."""
-        news = self._land()
-        due = self._sent_at is None or rollout - self._sent_at >= self.every_rollouts
-        if self._in_flight is not None or not due:
-            return news
-        reported = served()
-        if reported or type_ids or self._reported:
-            self._sent_at = rollout
-            self._reported = bool(reported)
-            self.exchanges += 1
-            if self._executor is None:
-                return self._exchange(reported, type_ids)
-            self._in_flight = self._executor.submit(self._exchange, reported, type_ids)
-        return news
-
-    def close(self) -> None:
-        """Wait for an exchange under way, then withdraw what this run still has pending."""
-        if self._executor is not None:
-            self._executor.shutdown(wait=True)
-            self._executor = None
-        self._in_flight = None
-        if self._reported:
-            self._reported = False
-            self.exchanges += 1
-            self._exchange([], [])
-
-    def _land(self) -> list[PendingPoint] | None:
-        done = self._in_flight
-        if done is None or not done.done():
-            return None
-        self._in_flight = None
-        return done.result()
-
-
 class PeerHints:
     """The newest `per_type` feasible points of each type that other planners stored, as
-    candidates (hints) for the MPF maximisation of a request that binds the type; without
-    `prefer`, scored only (never preferred among the near-best candidates)."""
+    candidates (hints) for the MPF maximisation of a request that binds the type, preferred
+    among its near-best candidates."""
 
-    def __init__(
-        self, per_type: int, limit: int, whole_only: bool = False, prefer: bool = True
-    ) -> None:
+    def __init__(self, per_type: int, limit: int) -> None:
         self.per_type = per_type
         self.limit = limit
-        self.whole_only = whole_only
-        self.prefer = prefer
         self._points: dict[str, list[tuple[int, str | None, dict[str, Value]]]] = {}
         self.used = 0  # hints handed to suggestions
 
-    def add(self, point: LivePoint, *, by_rollout: bool = False) -> None:
-        """Keep a feasible point; its chain is its run's, or with `by_rollout` its rollout's
-        (a stored run's rollouts are over: each passed its own decisions)."""
+    def add(self, point: LivePoint) -> None:
+        """Keep a feasible point; its chain is its run's."""
         if not point.feasible or self.per_type <= 0:
             return
-        chain = f"{point.run}#{point.rollout}" if by_rollout else point.run
         kept = self._points.setdefault(point.type_id, [])
-        kept.append((point.point_id, chain, dict(point.x)))
+        kept.append((point.point_id, point.run, dict(point.x)))
         kept.sort(key=lambda item: item[0])
         del kept[: -self.per_type]
 
@@ -215,12 +147,11 @@ class PeerHints:
         self, constraints: list[Constraint], free: set[str]
     ) -> tuple[list[dict[str, Value]], int]:
         """The kept points in the request's free variables, through each constraint binding
-        their type, and how many of them, the first, to prefer (all, or with `whole_only` the
-        whole chains). First come, per other run, its points merged (each variable at its newest
-        value), so that the chain of decisions a run last passed (its binding, once it has one)
-        is one candidate rather than scattered parts; the whole chains (the run passed every
-        constraint of the request, and the chain gives every free variable) lead. At most
-        `limit`, the newest first."""
+        their type, and how many of them, the first, to prefer (all). First come, per other
+        run, its points merged (each variable at its newest value), so that the chain of
+        decisions a run last passed (its binding, once it has one) is one candidate rather than
+        scattered parts; the whole chains (the run passed every constraint of the request, and
+        the chain gives every free variable) lead. At most `limit`, the newest first."""
         parts: list[tuple[int, str | None, dict[str, Value]]] = []
         passed: dict[str | None, set[str]] = {}
         for constraint in constraints:
@@ -241,31 +172,9 @@ class PeerHints:
         for hint in whole:
             if hint not in hints:
                 hints.append(hint)
-        preferred = len(hints)
         for hint in [*(merged[r] for r in runs), *(h for *_, h in reversed(parts))]:
             if hint not in hints:
                 hints.append(hint)
         hints = hints[: self.limit]
         self.used += len(hints)
-        if not self.prefer:
-            return hints, 0
-        return hints, min(preferred, len(hints)) if self.whole_only else len(hints)
-
-
-def joined_hints(
-    *sources: PeerHints | None,
-) -> Callable[[list[Constraint], set[str]], tuple[list[dict[str, Value]], int]] | None:
-    """One hint function over several kinds of hints: every source's preferred hints first."""
-    kept = [source for source in sources if source is not None]
-    if not kept:
-        return None
-
-    def for_request(
-        constraints: list[Constraint], free: set[str]
-    ) -> tuple[list[dict[str, Value]], int]:
-        answers = [source.for_request(constraints, free) for source in kept]
-        first = [hint for hints, preferred in answers for hint in hints[:preferred]]
-        rest = [hint for hints, preferred in answers for hint in hints[preferred:]]
-        return [*first, *rest], len(first)
-
-    return for_request
+        return hints, len(hints)

@@ -18,60 +18,32 @@ service would serve it.
 
 Like the service, it keeps the suggestions it served as pending until a point answers them (or
 they expire), and pushes new ones away from them: a batch's unused points and other nodes' recent
-suggestions keep the tree spread. With live sharing, the session reports them to the service and
-hands back the other planners' (`served`, `share`: `planner.knowledge.live.PendingExchange`);
-those are pushed away from too, mapped through their types' decision labels onto this request's
-variables (another task names its variables its own way).
+suggestions keep the tree spread.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from contract import models as wire
-from contract.models import Constraint, ModelsOut, PendingPoint, SuggestIn, SuggestOut
+from contract.models import Constraint, ModelsOut, SuggestIn, SuggestOut
 from planner.config import KnowledgeConfig
 from surrogate import snapshot
 from surrogate.config import OptimizerConfig, SurrogateConfig
 from surrogate.domains import Domain, Value, space_from_json
 from surrogate.encoding import encoder_for
 from surrogate.pending import PendingBook
-from surrogate.predictors import FeasibilityPredictor, Mixture, PriorPredictor, RecentPoints
+from surrogate.predictors import FeasibilityPredictor, PriorPredictor, RecentPoints
 from surrogate.suggest import ModelSource, SuggestRequest, TypeModel
 from surrogate.suggest import suggest as suggest_point
 
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
-# One point moves the evidence by at most log(0.95 / 0.05) = 2.9: a model that put 0.99 on a
-# placement that failed is wrong, but not a hundred times as wrong as one that put 0.9 there.
-EVIDENCE_CLIP = 0.05
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
-Shared = tuple[dict[str, Value], tuple[tuple[str, tuple[tuple[str, str], ...]], ...]]
-
-
-def in_request_terms(shared: list[Shared], constraints: list[Constraint]) -> list[dict[str, Value]]:
-    """Other planners' pending points as this request's variables: each type the point and the
-    request share maps the point's values, by the type's decision labels, onto the variables
-    the request binds them to (a point may so give only some of them)."""
-    wanted = {c.type_id for c in constraints}
-    out: list[dict[str, Value]] = []
-    for x, binds in shared:
-        for type_id, bind in binds:
-            if type_id not in wanted:
-                continue
-            for constraint in constraints:
-                if constraint.type_id != type_id:
-                    continue
-                mine = constraint.bind
-                point = {mine[label]: x[var] for label, var in bind if var in x and label in mine}
-                if point and point not in out:
-                    out.append(point)
-    return out
 
 
 def fetch_from(
@@ -96,60 +68,6 @@ def fetch_from(
 
 
 @dataclass
-class Evidence:
-    """This run's own points of a type, and how much better the type's fetched model predicted
-    them than the stated prior on this run's earlier points did: the log Bayes factor of their
-    prequential likelihoods, each point predicted by both before it was known. `weight` is the
-    model's posterior probability in a Bayesian average of the two, from `prior`. Kept across
-    refetches: a new snapshot holds the points, not how it would have predicted them."""
-
-    prior: float = KnowledgeConfig.model_evidence_prior
-    log_ratio: float = 0.0
-    points: list[tuple[dict[str, Value], bool]] = field(default_factory=list)
-
-    def observe(self, x: Mapping[str, Value], feasible: bool, p_model: float, p_own: float) -> None:
-        p_model, p_own = np.clip([p_model, p_own], EVIDENCE_CLIP, 1.0 - EVIDENCE_CLIP)
-        if not feasible:
-            p_model, p_own = 1.0 - p_model, 1.0 - p_own
-        self.log_ratio += float(np.log(p_model) - np.log(p_own))
-        self.points.append((dict(x), feasible))
-
-    @property
-    def weight(self) -> float:
-        logit = np.log(self.prior) - np.log1p(-self.prior) + self.log_ratio
-        return float(1.0 / (1.0 + np.exp(-logit)))
-
-
-@dataclass(frozen=True)
-class PriorSettings:
-    """How this planner states the prior of a type without a fit (the `knowledge.prior_*`
-    knobs of `KnowledgeConfig`, which say why each exists)."""
-
-    base_rate: bool = KnowledgeConfig.prior_base_rate
-    counts: float = KnowledgeConfig.prior_counts
-    choice_rates: bool = KnowledgeConfig.prior_choice_rates
-
-    @classmethod
-    def of(cls, config: KnowledgeConfig) -> PriorSettings:
-        return cls(config.prior_base_rate, config.prior_counts, config.prior_choice_rates)
-
-    def counted(
-        self,
-        prior: PriorPredictor,
-        space: Mapping[str, Domain],
-        feasible: np.ndarray | None = None,
-        infeasible: np.ndarray | None = None,
-    ) -> PriorPredictor:
-        """`prior` counting its points (`counts` pseudo-points), with encoded `feasible` `(a, D)`
-        and `infeasible` `(b, D)` more of them, centred per categorical choice with
-        `choice_rates`."""
-        counted = prior.counted(self.counts, feasible, infeasible)
-        if not self.choice_rates:
-            return counted
-        return counted.by_choice(encoder_for(space).choice_rows())
-
-
-@dataclass
 class _Model:
     space: dict[str, Domain]
     fitted: FeasibilityPredictor
@@ -160,9 +78,7 @@ class _Model:
     # Other planners' points since (point id, x, ok): `LocalSurrogates.learn`.
     others: list[tuple[int, dict[str, Value], bool]] = field(default_factory=list)
     born_with: int = 0  # a type this planner created: the poster batch that stores it
-    prior: PriorSettings = PriorSettings()
-    evidence: Evidence | None = None  # with `KnowledgeConfig.model_evidence`
-    _predictor: FeasibilityPredictor | None = None
+    prior_counts: float = KnowledgeConfig.prior_counts
     _combined: FeasibilityPredictor | None = None
     # `own` and `others` encoded, row for row: both lists only grow, and every new point
     # would otherwise re-encode all of them for the next suggestion.
@@ -173,27 +89,9 @@ class _Model:
     def fetched(self) -> bool:
         return bool(self.version)
 
-    def predictor(self) -> FeasibilityPredictor:
-        """`model()`, averaged with the stated prior on this run's own points by their
-        `evidence` when it is kept and there are such points."""
-        if self._predictor is None:
-            combined = self.model()
-            if self.evidence is None or not self.evidence.points:
-                self._predictor = combined
-            else:
-                self._predictor = Mixture(combined, self._own_prior(), self.evidence.weight)
-        return self._predictor
-
-    def _own_prior(self) -> PriorPredictor:
-        """The stated prior on this run's own points alone: what it knows without the model."""
-        assert self.evidence is not None
-        return self._stated_prior(*_encoded(self.space, *_by_label(self.evidence.points)))
-
     def _stated_prior(self, feasible: np.ndarray, infeasible: np.ndarray) -> PriorPredictor:
         prior = PriorPredictor(feasible, infeasible)
-        if self.prior.base_rate:
-            prior = prior.with_base_rate()
-        return self.prior.counted(prior, self.space) if self.prior.counts > 0 else prior
+        return prior.counted(self.prior_counts) if self.prior_counts > 0 else prior
 
     def model(self) -> FeasibilityPredictor:
         """The fetched predictor with this planner's points since weighed in; for a type this
@@ -208,11 +106,9 @@ class _Model:
         if not self.fetched:
             return self._stated_prior(feasible, infeasible)
         fitted = self.fitted
-        if self.prior.base_rate:
-            fitted = with_base_rate(fitted, len(feasible), len(infeasible))
-        if self.prior.counts > 0 and (prior := stated_prior(fitted)) is not None:
+        if self.prior_counts > 0 and (prior := stated_prior(fitted)) is not None:
             # Counted, the points since the service's prior are more of its points.
-            return self.prior.counted(prior, self.space, feasible, infeasible)
+            return prior.counted(self.prior_counts, feasible, infeasible)
         if not len(feasible) and not len(infeasible):
             return fitted
         return RecentPoints(fitted, feasible, infeasible)
@@ -227,26 +123,9 @@ class _Model:
         return rows[ok], rows[~ok]
 
     def add(self, batch: int, x: Mapping[str, Value], feasible: bool) -> None:
-        """One of this run's own points; with `evidence`, first scored by the model and by the
-        stated prior on this run's earlier points, as each predicted it before it was known."""
-        if self.evidence is not None:
-            z = encoder_for(self.space).encode_points([dict(x)])
-            p_model = float(self.model().proba(z)[0])
-            p_own = float(self._own_prior().proba(z)[0])
-            self.evidence.observe(x, feasible, p_model, p_own)
+        """One of this run's own points."""
         self.own.append((batch, dict(x), feasible))
-        self._predictor = self._combined = None
-
-
-def _by_label(
-    points: Iterable[tuple[dict[str, Value], bool]],
-) -> tuple[list[dict[str, Value]], list[dict[str, Value]]]:
-    """The feasible points' decisions, then the infeasible ones'."""
-    feasible: list[dict[str, Value]] = []
-    infeasible: list[dict[str, Value]] = []
-    for x, ok in points:
-        (feasible if ok else infeasible).append(x)
-    return feasible, infeasible
+        self._combined = None
 
 
 def _grown(
@@ -259,39 +138,6 @@ def _grown(
     if len(points) > len(rows):
         rows = np.vstack([rows, encoder.encode_points(points[len(rows) :])])
     return rows
-
-
-def _encoded(
-    space: Mapping[str, Domain],
-    feasible: list[dict[str, Value]],
-    infeasible: list[dict[str, Value]],
-) -> tuple[np.ndarray, np.ndarray]:
-    """Both lists in the type's GP inputs, `(a, D)` and `(b, D)`."""
-    encoder = encoder_for(space)
-    empty = np.zeros((0, encoder.dim))
-    return (
-        encoder.encode_points(feasible) if feasible else empty,
-        encoder.encode_points(infeasible) if infeasible else empty,
-    )
-
-
-def with_base_rate(
-    predictor: FeasibilityPredictor, feasible: int, infeasible: int
-) -> FeasibilityPredictor:
-    """`predictor` with its stated prior centred on the type's base rate, counting `feasible`
-    and `infeasible` points held beside it, if it is one (also under the service's `RecentPoints`,
-    whose points count too); a fit is returned as it is. The prior inside `UnseenChoices` keeps
-    its centre: it speaks for choices no point has tried, which the type's rate says nothing of."""
-    if isinstance(predictor, PriorPredictor):
-        return predictor.with_base_rate(feasible, infeasible)
-    if isinstance(predictor, RecentPoints):
-        base = with_base_rate(
-            predictor.base,
-            feasible + len(predictor.feasible),
-            infeasible + len(predictor.infeasible),
-        )
-        return predictor if base is predictor.base else dataclasses.replace(predictor, base=base)
-    return predictor
 
 
 def stated_prior(predictor: FeasibilityPredictor) -> PriorPredictor | None:
@@ -325,18 +171,14 @@ class LocalSurrogates:
         background: bool = True,
         refresh_rollouts: int = KnowledgeConfig.refresh_rollouts,
         pending_clock: Callable[[], float] = time.monotonic,
-        prior: PriorSettings = PriorSettings(),
+        prior_counts: float = KnowledgeConfig.prior_counts,
         spread_walls: bool = KnowledgeConfig.spread_walls,
-        model_evidence: bool = KnowledgeConfig.model_evidence,
-        model_evidence_prior: float = KnowledgeConfig.model_evidence_prior,
     ) -> None:
         """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
         until a point answers them, so that how long a run waits does not change its course."""
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
-        self.prior = prior
-        self.model_evidence = model_evidence
-        self.model_evidence_prior = model_evidence_prior
+        self.prior_counts = prior_counts
         self._models: dict[str, _Model] = {}
         self.spread_walls = spread_walls
         self._config = OptimizerConfig(spread_walls=spread_walls)
@@ -350,8 +192,6 @@ class LocalSurrogates:
         )
         self._in_flight: _Fetch | None = None
         self._learned = 0  # the newest point id `learn` has taken in
-        self._shared: list[Shared] = []  # other planners' pending suggestions (`share`)
-        self.shared_used = 0  # of those, points suggestions here were kept away from
 
     def adopt(
         self,
@@ -377,8 +217,7 @@ class LocalSurrogates:
                 n_fitted=0,
                 fetched_at=0,
                 born_with=stored_with,
-                prior=self.prior,
-                evidence=self._evidence(None),
+                prior_counts=self.prior_counts,
             )
         return True
 
@@ -396,25 +235,8 @@ class LocalSurrogates:
         model = self._models.get(type_id)
         if model is not None:
             model.others.append((point_id, dict(x), feasible))
-            model._predictor = model._combined = None
+            model._combined = None
             self._learned = max(self._learned, point_id)
-
-    def served(self, limit: int) -> list[PendingPoint]:
-        """The newest `limit` suggestions served here that no point has answered yet."""
-        entries = [e for e in self._pending.entries(PENDING_KEY) if e.binds][-limit:]
-        return [
-            PendingPoint(
-                x=e.x, binds=[Constraint(type_id=t, bind=dict(bind)) for t, bind in e.binds]
-            )
-            for e in entries
-        ]
-
-    def share(self, others: list[PendingPoint]) -> None:
-        """The other planners' pending suggestions now (in place of those shared before)."""
-        self._shared = [
-            (dict(p.x), tuple((c.type_id, tuple(sorted(c.bind.items()))) for c in p.binds))
-            for p in others
-        ]
 
     def suggest(
         self,
@@ -436,7 +258,6 @@ class LocalSurrogates:
         stale = [t for t in type_ids if self._stale(t, rollout, stored)]
         if stale:
             self._refresh(stale, rollout, stored)
-        shared = in_request_terms(self._shared, request.constraints) if self._shared else []
         free = set(request.space) - set(request.fixed)
         hinted, preferred = hints(request.constraints, free) if hints is not None else ([], 0)
         answer = suggest_point(
@@ -445,11 +266,9 @@ class LocalSurrogates:
             self._pending,
             key=PENDING_KEY,
             config=self._config,
-            shared=shared,
             hints=hinted,
             preferred=preferred,
         )
-        self.shared_used += len(shared)
         out = answer.to_json()
         out["method"] = f"{answer.method}-local"
         return SuggestOut.model_validate(out)
@@ -459,7 +278,7 @@ class LocalSurrogates:
         planner's points since weighed in."""
         held = self._models[type_id]
         n_points = held.n_fitted + len(held.own) + len(held.others)
-        return TypeModel(held.space, held.predictor(), held.version, held.n_fitted, n_points)
+        return TypeModel(held.space, held.model(), held.version, held.n_fitted, n_points)
 
     def close(self) -> None:
         """Stop the background refresh (one under way is waited for, not applied)."""
@@ -467,15 +286,6 @@ class LocalSurrogates:
             self._executor.shutdown(wait=True, cancel_futures=True)
             self._executor = None
         self._in_flight = None
-
-    def _evidence(self, previous: _Model | None) -> Evidence | None:
-        """The evidence a type's new model keeps from the one it replaces (a fresh one for a
-        type new here), if this planner weighs evidence."""
-        if not self.model_evidence:
-            return None
-        if previous is not None and previous.evidence is not None:
-            return previous.evidence
-        return Evidence(prior=self.model_evidence_prior)
 
     def _stale(self, type_id: str, rollout: int, stored: int) -> bool:
         model = self._models[type_id]
@@ -543,8 +353,7 @@ class LocalSurrogates:
                 fetched_at=rollout,
                 own=own,
                 others=others,
-                prior=self.prior,
-                evidence=self._evidence(previous),
+                prior_counts=self.prior_counts,
             )
         for type_id in type_ids:
             if type_id not in self._models:

@@ -41,7 +41,6 @@ from planner.search.tree import (
     check_alternating,
     close,
     comparable_outlook,
-    note_choices,
     note_proposal,
     reward,
     ucb_select,
@@ -217,8 +216,6 @@ class PWUCT:
         node = self.root
         while True:
             node.visits += 1
-            if self.config.hopeless_choices and self.config.hopeless_widening:
-                note_choices(node)
             if (followed := chain.get(node.var.var)) is not None:
                 child = self._follow(node, followed)
             elif widens(node, self.config.pw_k):
@@ -293,12 +290,7 @@ class PWUCT:
         times above every open child's outlook (see `SearchConfig.outlook_widening`)."""
         if not self.config.outlook_widening:
             return None
-        best = comparable_outlook(
-            node,
-            self.config.outlook_prior_weight,
-            self.config.outlook_continuous_failures,
-            exhausted=self.config.outlook_exhausted,
-        )
+        best = comparable_outlook(node, self.config.outlook_prior_weight)
         if best is None:
             return None
         started = time.perf_counter()

@@ -58,7 +58,6 @@ class DecisionNode:
     n_hopeless: int = 0  # open children whose next node is hopeless
     retries: int = 0  # further attempts a choice that failed inconclusively may get
     hopeless: bool = False  # counted in the parent's widening (see `mark_hopeless`)
-    proposal_hopeless: bool = False  # the latest proposal here was unlikely to be feasible
     first_p_feasible: float | None = None  # the knowledge base's view when the search came here
     last_p_feasible: float | None = None  # its view at the latest proposal: the outlook
     values: list[Value] = field(default_factory=list)  # the children's values, in order
@@ -151,19 +150,7 @@ def note_proposal(node: DecisionNode, p_feasible: float, config: SearchConfig) -
     if not config.hopeless_widening:
         return
     tried = len(node.children) >= config.hopeless_min_children
-    node.proposal_hopeless = tried and p_feasible < config.hopeless_ratio * node.first_p_feasible
-    mark_hopeless(node, node.proposal_hopeless)
-
-
-def note_choices(node: DecisionNode) -> None:
-    """`SearchConfig.hopeless_choices`: a node that has tried every choice is hopeless while
-    every open child leads to a hopeless node (or while its latest proposal was). Checked at
-    each visit, since a child's node turns hopeless, or back, with the proposals made there."""
-    if not node.exhausted:
-        return
-    open_children = [c for c in node.children if not c.closed]
-    stuck = bool(open_children) and all(_hopeless_below(c) for c in open_children)
-    mark_hopeless(node, node.proposal_hopeless or stuck)
+    mark_hopeless(node, tried and p_feasible < config.hopeless_ratio * node.first_p_feasible)
 
 
 def close(child: ChildNode) -> None:
@@ -190,86 +177,40 @@ def widens(node: DecisionNode, k: float) -> bool:
     return node.visits > k * n_children**2
 
 
-def child_outlook(
-    child: ChildNode,
-    prior_weight: float,
-    continuous_failures: bool = False,
-    *,
-    exhausted: str = "off",
-) -> float | None:
+def child_outlook(child: ChildNode, prior_weight: float) -> float | None:
     """The knowledge base's view below `child` after the failures through it (see
     `SearchConfig.outlook_prior_weight`); None if it has not rated the node below. The child
-    of a continuous decision keeps the model's view unless `continuous_failures`
-    (`SearchConfig.outlook_continuous_failures`). `exhausted`
-    (`SearchConfig.outlook_exhausted`): how a node below that has tried every choice is
-    viewed (`current_view`)."""
+    of a continuous decision keeps the model's view."""
     below = child.next
     if below is None:
         return None
-    counted = prior_weight if exhausted == "counted" else None
-    p = below.last_p_feasible if exhausted == "off" else current_view(below, counted)
-    if p is None or (child.parent.n_choices is None and not continuous_failures):
+    p = below.last_p_feasible
+    if p is None or child.parent.n_choices is None:
         return p
-    return _counted(p, child, prior_weight)
-
-
-def _counted(p: float, child: ChildNode, prior_weight: float) -> float:
-    """`p` as a Beta prior worth `prior_weight` rollouts, after the failures through `child`."""
     failures = 0 if child.success else child.visits
     return prior_weight * p / (prior_weight + failures)
 
 
-def current_view(node: DecisionNode, counted: float | None = None) -> float | None:
-    """The knowledge base's latest view of what is still open at `node`: its last proposal's,
-    or, once a categorical node has tried every choice (it proposes no more), the best of its
-    open children's current views, which their later proposals keep up to date, each counted
-    against the failures through it with prior weight `counted` if given; the last proposal's
-    while one of them has not been rated."""
-    if not node.all_tried:
-        return node.last_p_feasible
-    views: list[float] = []
-    for child in node.children:
-        if child.closed:
-            continue
-        view = current_view(child.next, counted) if child.next is not None else None
-        if view is None:
-            return node.last_p_feasible
-        views.append(view if counted is None else _counted(view, child, counted))
-    return max(views) if views else node.last_p_feasible
-
-
-def outlook(
-    node: DecisionNode,
-    prior_weight: float,
-    continuous_failures: bool = False,
-    *,
-    exhausted: str = "off",
-) -> float | None:
+def outlook(node: DecisionNode, prior_weight: float) -> float | None:
     """The best outlook among `node`'s open children; None unless every open child (one at
     least) has been rated by the knowledge base."""
     best: float | None = None
     for child in node.children:
         if child.closed:
             continue
-        p = child_outlook(child, prior_weight, continuous_failures, exhausted=exhausted)
+        p = child_outlook(child, prior_weight)
         if p is None:
             return None
         best = p if best is None else max(best, p)
     return best
 
 
-def comparable_outlook(
-    node: DecisionNode,
-    prior_weight: float,
-    continuous_failures: bool = False,
-    *,
-    exhausted: str = "off",
-) -> float | None:
+def comparable_outlook(node: DecisionNode, prior_weight: float) -> float | None:
     """The outlook an untried value of `node` is compared with: None unless untried values are
     left and every open child is rated."""
     if node.all_tried:
         return None
-    return outlook(node, prior_weight, continuous_failures, exhausted=exhausted)
+    return outlook(node, prior_weight)
 
 
 def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
@@ -278,22 +219,18 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
     within `outlook_ratio` of the best outlook, except at every `outlook_free_every`-th visit: a
     subtree whose outlook stays high while it keeps failing (a failure the knowledge base does
     not model, or a model that does not learn it) must not keep the others from being reached.
-    With `leave_hopeless`, children whose node is hopeless are passed over while another open
-    child's is not. Ties go to the earliest child, so selection is deterministic."""
+    Ties go to the earliest child, so selection is deterministic."""
     best: ChildNode | None = None
     best_score = -math.inf
     log_n = math.log(max(node.visits, 1))
     weight, ratio = config.outlook_prior_weight, config.outlook_ratio
     guided = config.outlook_selection and node.visits % config.outlook_free_every != 0
-    continuous, exhausted = config.outlook_continuous_failures, config.outlook_exhausted
-    best_outlook = outlook(node, weight, continuous, exhausted=exhausted) if guided else None
-    leave = config.leave_hopeless and config.hopeless_widening and node.n_hopeless > 0
-    hopeful = leave and any(not c.closed and not _hopeless_below(c) for c in node.children)
+    best_outlook = outlook(node, weight) if guided else None
     for child in node.children:
-        if child.closed or (hopeful and _hopeless_below(child)):
+        if child.closed:
             continue
         if best_outlook is not None:
-            rated = child_outlook(child, weight, continuous, exhausted=exhausted)
+            rated = child_outlook(child, weight)
             assert rated is not None
             if rated * ratio < best_outlook:
                 continue
@@ -301,10 +238,6 @@ def ucb_select(node: DecisionNode, config: SearchConfig) -> ChildNode | None:
         if score > best_score:
             best, best_score = child, score
     return best
-
-
-def _hopeless_below(child: ChildNode) -> bool:
-    return child.next is not None and child.next.hopeless
 
 
 def backup(child: ChildNode, reward: float) -> None:

@@ -39,15 +39,12 @@ def _import_pybullet_quietly() -> None:
 
 _import_pybullet_quietly()
 
-from planner.config import SimConfig  # noqa: E402
 from planner.sim.world import PyBulletWorld, SimState  # noqa: E402
 from planner.tasks import load_task  # noqa: E402
 
 __all__ = ["PyBulletWorld", "SimState", "load_world"]
 
 
-def load_world(
-    task: str | Path, *, seed: int, gui: bool = False, sim: SimConfig | None = None
-) -> PyBulletWorld:
+def load_world(task: str | Path, *, seed: int, gui: bool = False) -> PyBulletWorld:
     """A world for a shipped task (`"desk"`) or a task file (`"my_task.yaml"`)."""
-    return PyBulletWorld(load_task(task), seed=seed, gui=gui, sim=sim)
+    return PyBulletWorld(load_task(task), seed=seed, gui=gui)

@@ -159,13 +159,11 @@ def solve_ik(
     first_guess: tuple[float, ...] | None = None,
     collisions: Checker | None = None,
     tally: CollisionTally | None = None,
-    collided_stop: int = 0,
 ) -> IkResult:
     """PyBullet's damped-least-squares IK from `restarts` seeded starts (`first_guess`, then
     alternately near it and anywhere within the joint limits), accepted within `tolerance`
     metres and the joint limits, and free of collision under `collisions` (the bodies hit are
-    added to `tally`). With `collided_stop`, the search gives up once that many restarts have
-    reached the pose in collision. A failure reports the least residuals and the least total
+    added to `tally`). A failure reports the least residuals and the least total
     penetration of the restarts that reached the pose: bookkeeping only, the draws stay those of
     the seed."""
     low, high = np.asarray(scene.joint_low), np.asarray(scene.joint_high)
@@ -216,6 +214,4 @@ def solve_ik(
         least_depth = min(least_depth, total_penetration(hits))
         if tally is not None:
             tally.add(hits)
-        if collided_stop and reached >= collided_stop:
-            return IkResult(None, best_pos, best_ang, attempt + 1, reached, least_depth)
     return IkResult(None, best_pos, best_ang, restarts, reached, least_depth)

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from contract.models import Value
-from planner.config import SimConfig
 from planner.sim.geometry import Pose, derived_seed, quat_from_axes, rotation
 from planner.sim.grasps import (
     Grasp,
@@ -69,7 +68,6 @@ class Execution:
     held: Grasp | None
     tally: CollisionTally = field(default_factory=CollisionTally)
     attempt: int = 0
-    sim: SimConfig = field(default_factory=SimConfig)  # the run's policies of the checks
 
     def draw_seed(self, call: OperatorCall, *inputs: object) -> int:
         """The seed of a randomised check: a function of the run's seed, the check's inputs and
@@ -224,7 +222,6 @@ def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:
         restarts=s.ik_restarts,
         iterations=s.ik_iterations,
         tolerance=s.ik_tolerance,
-        collided_stop=ex.sim.ik_collided_stop,
     )
     tried: list[IkResult] = []
     for grasp in candidates:

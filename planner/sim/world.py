@@ -7,7 +7,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 from contract.models import CategoricalDomain, Value
-from planner.config import SimConfig
 from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp
 from planner.sim.motion import CollisionTally
@@ -32,14 +31,10 @@ class SimState:
 
 
 class PyBulletWorld:
-    """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`; its
-    checks under the run's `sim` policies."""
+    """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`."""
 
-    def __init__(
-        self, task: Task, *, seed: int, gui: bool = False, sim: SimConfig | None = None
-    ) -> None:
+    def __init__(self, task: Task, *, seed: int, gui: bool = False) -> None:
         self.task = task
-        self.sim = sim if sim is not None else SimConfig()
         self.name = task.name
         self.seed = int(seed)
         self.skeleton: Skeleton = build_skeleton(task)
@@ -67,10 +62,6 @@ class PyBulletWorld:
                 (name, (float(sx), float(sy), float(sz)))
                 for name in self.scene.movable_names
                 for sx, sy, sz in [self.scene.sizes[name]]
-            ),
-            placement_extents=tuple(
-                (var, self.scene.placement_extents(body, region))
-                for var, (body, region) in self.pose_sources.items()
             ),
         )
         self.restore(self._initial)
@@ -110,7 +101,6 @@ class PyBulletWorld:
             values=dict(state.values),
             arm=state.arm,
             held=state.held,
-            sim=self.sim,
         )
         checks: list[CheckResult] = []
         for call in layers[index].calls:

@@ -13,8 +13,6 @@ from contract.models import (
     PointsPage,
     PointsSinceIn,
     PointsSinceOut,
-    StoredFeasibleIn,
-    StoredFeasibleOut,
 )
 from server.api.deps import HooksDep, SettingsDep, StoreDep
 from server.api.responses import BODY, IN_KB, INVALID, errors, json_errors
@@ -48,12 +46,6 @@ def post_points(
 def points_since(kb: str, body: PointsSinceIn, store: StoreDep) -> PointsSinceOut:
     """Other writers' points of the watched types stored after a cursor (live sharing)."""
     return points.points_since(store, kb, body)
-
-
-@router.post("/points/feasible", responses=BODY)
-def stored_feasible(kb: str, body: StoredFeasibleIn, store: StoreDep) -> StoredFeasibleOut:
-    """The newest feasible points of each type: candidates for a planner starting on them."""
-    return points.stored_feasible(store, kb, body)
 
 
 @router.get("/types/{type_id}/points", responses=INVALID)

@@ -9,8 +9,6 @@ from fastapi import APIRouter, Depends, Request
 from contract.models import (
     ModelsIn,
     ModelsOut,
-    PendingIn,
-    PendingOut,
     PredictIn,
     PredictOut,
     SuggestIn,
@@ -50,13 +48,6 @@ def models(kb: str, body: ModelsIn, engine: EngineDep) -> ModelsOut:
     """Each type's current predictor, for MPF in the caller's own process; types whose
     version the caller already holds (`known`) are left out."""
     return service.models(engine, kb, body)
-
-
-@router.post("/pending", responses=BODY)
-def pending(kb: str, body: PendingIn, engine: EngineDep) -> PendingOut:
-    """Report the caller's suggestions not answered yet (a planner suggesting in its own
-    process); the other planners' pending suggestions of the types asked for come back."""
-    return service.exchange_pending(engine, kb, body)
 
 
 @router.post("/types/{type_id}/predict", responses=BODY)

@@ -29,8 +29,6 @@ from contract.models import (
     PointsPage,
     PointsSinceIn,
     PointsSinceOut,
-    StoredFeasibleIn,
-    StoredFeasibleOut,
 )
 from server.db import Store
 from server.errors import Conflict, InvalidInput
@@ -378,27 +376,6 @@ def points_since(store: Store, kb: str, request: PointsSinceIn) -> PointsSinceOu
     points = [_live_point(row, type_ids) for row in rows]
     cursor = rows[-1][0] if more else max(top, after)
     return PointsSinceOut(points=points, cursor=cursor, more=more)
-
-
-def stored_feasible(store: Store, kb: str, request: StoredFeasibleIn) -> StoredFeasibleOut:
-    """The newest `per_type` feasible points of each type, per type the newest first."""
-    with store.transaction() as session:
-        kb_pk = kb_id(session, kb)
-        known = select(TypeRow.id, TypeRow.type_id).where(
-            TypeRow.kb_id == kb_pk, TypeRow.type_id.in_(sorted(set(request.type_ids)))
-        )
-        type_ids: dict[int, str] = {pk: type_id for pk, type_id in session.execute(known)}
-        rows = [
-            row
-            for pk in sorted(type_ids, key=type_ids.__getitem__)
-            for row in session.execute(
-                select(*_LIVE_COLUMNS)
-                .where(PointRow.type_pk == pk, PointRow.feasible.is_(True))
-                .order_by(PointRow.id.desc())
-                .limit(request.per_type)
-            ).all()
-        ]
-    return StoredFeasibleOut(points=[_live_point(row, type_ids) for row in rows])
 
 
 _LIVE_COLUMNS = (

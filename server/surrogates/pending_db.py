@@ -5,10 +5,6 @@ Rows of `cp_pending` under the knowledge base's row: a suggestion's values, its 
 bindings and when it expires (wall-clock UTC, as replicas share no monotonic clock). Matching a
 new point against the entries is `surrogate.pending.answers`, the in-process book's own rule; a
 knowledge base holds at most `MAX_PER_KB` live entries, so reading them all is one short query.
-
-Besides `surrogate.pending.Pending`, the book keeps what planners suggesting in their own
-processes report (`put` under their run's name, `others` for everyone else's), as the
-in-process book does for the pending exchange, so that exchange spans replicas too.
 """
 
 from __future__ import annotations
@@ -17,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from datetime import timedelta
 from typing import Any, cast
 
-from sqlalchemy import CursorResult, Table, delete, func, or_, select
+from sqlalchemy import CursorResult, Table, delete, func, select
 
 from server.db import Store
 from server.orm import KnowledgeBaseRow, PendingRow, utcnow
@@ -47,49 +43,29 @@ class DatabasePendingBook:
     def add(self, kb: str, x: Mapping[str, Value], binds: Binds) -> None:
         self._write(kb, [(x, binds)])
 
-    def put(
-        self, kb: str, owner: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]
-    ) -> None:
-        """What `owner` (a planner's run) has pending now: it replaces what the owner put
-        before (an empty list withdraws it all)."""
-        self._write(kb, entries, owner)
-
-    def others(self, kb: str, type_ids: frozenset[str], owner: str) -> list[PendingEntry]:
-        """Live entries of `kb` sharing a type with `type_ids` that `owner` did not put."""
-        entries = reversed(self._live(kb, PendingRow.owner.is_distinct_from(owner)))
-        return [e for _, e in entries if e.type_ids & type_ids]
-
-    def _write(
-        self,
-        kb: str,
-        entries: Sequence[tuple[Mapping[str, Value], Binds]],
-        owner: str | None = None,
-    ) -> None:
+    def _write(self, kb: str, entries: Sequence[tuple[Mapping[str, Value], Binds]]) -> None:
         now = utcnow()
         rows = [
             {
                 "kb_id": _kb(kb),
                 "x": dict(x),
                 "binds": [[t, sorted(b.items())] for t, b in binds],
-                "owner": owner,
                 "expires_at": now + timedelta(seconds=self.ttl_s),
             }
             for x, binds in entries
         ]
         gone = PendingRow.expires_at <= now
-        if owner is not None:
-            gone = or_(gone, PendingRow.owner == owner)
         with self.store.transaction(write=True) as session:
             session.execute(delete(PendingRow).where(PendingRow.kb_id == _kb(kb), gone))
             for row in rows:
                 session.execute(cast(Table, PendingRow.__table__).insert().values(row))
 
-    def _live(self, kb: str, *where: Any) -> list[tuple[int, PendingEntry]]:
+    def _live(self, kb: str) -> list[tuple[int, PendingEntry]]:
         """The newest `MAX_PER_KB` live entries (newest first), with their row ids."""
         with self.store.transaction() as session:
             rows = session.scalars(
                 select(PendingRow)
-                .where(PendingRow.kb_id == _kb(kb), PendingRow.expires_at > utcnow(), *where)
+                .where(PendingRow.kb_id == _kb(kb), PendingRow.expires_at > utcnow())
                 .order_by(PendingRow.id.desc())
                 .limit(MAX_PER_KB)
             ).all()

@@ -8,13 +8,9 @@ field; SpaceExhausted (a finite space wholly excluded) is a 409.
 from __future__ import annotations
 
 from contract.models import (
-    Constraint,
     ModelsIn,
     ModelSnapshot,
     ModelsOut,
-    PendingIn,
-    PendingOut,
-    PendingPoint,
     PredictIn,
     PredictOut,
     SuggestIn,
@@ -54,27 +50,6 @@ def suggest(
     except SpaceExhausted as exc:
         raise Conflict(f"exclude: {exc}") from exc
     return SuggestOut.model_validate(answer.to_json())
-
-
-def exchange_pending(engine: SurrogateEngine, kb: str, body: PendingIn) -> PendingOut:
-    """Put what `body.run` has pending in the service's book, in place of what it put before;
-    answer the other runs' pending suggestions of `body.type_ids` (404: no such base)."""
-    with engine.store.transaction() as session:
-        kb_id(session, kb)
-    engine.pending.put(
-        kb, body.run, [(p.x, [(c.type_id, c.bind) for c in p.binds]) for p in body.served]
-    )
-    others = engine.pending.others(kb, frozenset(body.type_ids), body.run)
-    return PendingOut(
-        pending=[
-            PendingPoint(
-                x=entry.x,
-                binds=[Constraint(type_id=t, bind=dict(bind)) for t, bind in entry.binds],
-            )
-            for entry in others
-            if entry.binds
-        ]
-    )
 
 
 def predict(engine: SurrogateEngine, kb: str, type_id: str, body: PredictIn) -> PredictOut:

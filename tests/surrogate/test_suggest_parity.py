@@ -21,7 +21,7 @@ import pytest
 from client import CpkbClient
 from client.errors import BadRequest
 from contract.models import PointIn, SuggestIn, SuggestOut
-from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from
+from planner.knowledge.local import LocalSurrogates, fetch_from
 from surrogate.config import OptimizerConfig
 from surrogate.domains import space_from_json
 from surrogate.pending import PendingBook
@@ -84,7 +84,7 @@ def test_the_core_and_the_planners_snapshots_answer_alike_in_memory() -> None:
     local = LocalSurrogates(
         fetch_from(memory, SERVICE_OPTIMIZER, 300.0),
         background=False,
-        prior=PriorSettings(counts=0.0),
+        prior_counts=0.0,
     )
     served = 0
     for recorded in REQUESTS:
@@ -164,7 +164,7 @@ def test_the_planner_and_the_service_answer_recorded_requests_alike(stocked_serv
         local = LocalSurrogates(
             lambda ids, known: client.models(kb, ids, known),
             background=False,
-            prior=PriorSettings(counts=0.0),
+            prior_counts=0.0,
         )
         for recorded in REQUESTS:
             request = SuggestIn.model_validate(recorded)

@@ -73,26 +73,10 @@ class CpBoSampler:
                 return left[0]
         batch = self._batch(ctx, self.config.batch_max_age)
         if batch is not None and batch.proposals:
-            best = batch.proposals[0]
-            if self._explores(ctx, best):
-                self.knowledge.stats.explored += 1
-                # The node's outlook stays the knowledge base's best, whichever value is taken.
-                value = space_filling(ctx, self.fallback.candidates_per_dim)
-                return Proposal(value, best.p_feasible)
             self.guided += 1
             return batch.proposals.pop(0)
         self.unguided += 1
         return space_filling(ctx, self.fallback.candidates_per_dim)
-
-    def _explores(self, ctx: SampleContext, best: Proposal) -> bool:
-        """Whether a continuous node takes a space-filling value instead of `best`
-        (`CpBoConfig.explore_below`, `CpBoConfig.random_every`); the batch keeps `best`."""
-        if isinstance(ctx.var.domain, CategoricalDomain):
-            return False
-        every = self.config.random_every
-        return best.p_feasible < self.config.explore_below or (
-            every > 0 and (len(ctx.siblings) + 1) % every == 0
-        )
 
     def propose_untried(self, ctx: SampleContext) -> Proposal | None:
         """The next point of this node's batch, left in it: the best untried value the

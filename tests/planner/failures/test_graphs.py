@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from contract.models import CategoricalDomain, ContinuousDomain
-from planner.failures import Encodings, failure_graph, size_constants
-from planner.failures.graphs import SIZE_DOMAIN, size_var
+from planner.failures import Encodings, failure_graph
 from planner.search.analytic import GRASP_DOMAIN, analytic_world, pick_place_skeleton
 from planner.skeleton import DecisionVar, Layer, OperatorCall, Skeleton
 from planner.tasks import grasp_domain, pose_domain
@@ -240,39 +239,6 @@ def test_grasps_keep_their_declared_encoding_where_no_placement_or_switched_off(
     )  # sides and top
 
 
-def test_a_framed_placement_gets_its_half_extents_in_metres():
-    skeleton = regrasp_skeleton(pose=pose_domain("region2"))
-    geometry = WorldGeometry(placement_extents=(("#pose12", (0.21, 0.07)),))
-    shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
-
-    def pose_of(fg):
-        return next(n.domain for n in fg.graph.nodes if n.label == "#pose")
-
-    metric = pose_of(failure_graph(skeleton, 3, shelf_ik, encodings=Encodings(geometry)))
-    assert metric.scale == [0.21, 0.07] and metric.frame == "region2" and metric.heading == 2
-    off = Encodings(geometry, metric_frames=False)
-    assert pose_of(failure_graph(skeleton, 3, shelf_ik, encodings=off)) == pose_domain("region2")
-
-
-def test_with_body_sizes_a_type_is_about_one_object_not_one_name():
-    """Two tasks that call boxes of other sizes `body` give two types; the same box, one type;
-    obstacles keep their names; switched off, the name alone labels the body (the paper's)."""
-    world = analytic_world("desk")
-    outcome = world.transition(0, {"#dir1": "right"}, None)
-
-    def graph(size: tuple[float, float, float], on: bool = True):
-        geometry = WorldGeometry(body_sizes=(("body", size),))
-        encodings = Encodings(geometry, body_sizes=on)
-        return failure_graph(world.skeleton, 0, outcome.failed, encodings=encodings).graph
-
-    small, large = graph((0.042, 0.037, 0.147)), graph((0.044, 0.049, 0.172))
-    assert small != large
-    assert small == graph((0.0421, 0.0369, 0.1472))  # the same box, measured to the millimetre
-    assert roles(small)["context"] == {"body@42x37x147mm", "pose0", "obstacle2"}
-    assert graph((0.042, 0.037, 0.147), on=False) == graph((0.044, 0.049, 0.172), on=False)
-    assert "body" in roles(graph((0.042, 0.037, 0.147), on=False))["context"]
-
-
 def test_without_movable_names_one_box_beside_another_is_one_type_whichever_boxes():
     """Pack's second box placed against its first and its third against its second: with
     movable bodies labelled `movable` one type (by the service's hash), each bound to its own
@@ -304,67 +270,22 @@ def test_without_movable_names_one_box_beside_another_is_one_type_whichever_boxe
         skeleton, 1, tray, encodings=Encodings(geometry, movable_names=False)
     )
     assert roles(tray_graph.graph)["context"] == {"movable", "region5", "top", "tray"}
-    with pytest.raises(ValueError, match="size inputs"):
-        Encodings(geometry, movable_names=False, size_inputs=True)
-
-
-def test_with_size_inputs_boxes_of_one_name_share_a_type_and_their_sizes_are_inputs():
-    """The size is a decision vertex of the graph (one domain for every box, so one type for
-    boxes of any size), bound to the body's size constant; a point records the size."""
-    world = analytic_world("desk")
-    outcome = world.transition(1, {"#dir1": "top", "#pose12": [0.0, 1.0, 0.5]}, None)
-
-    def failure(size: tuple[float, float, float]):
-        geometry = WorldGeometry(body_sizes=(("body", size),))
-        fg = failure_graph(
-            world.skeleton, 1, outcome.failed, encodings=Encodings(geometry, size_inputs=True)
-        )
-        return fg, geometry
-
-    small, small_geometry = failure((0.042, 0.037, 0.147))
-    large, _ = failure((0.044, 0.049, 0.172))
-    assert small.graph == large.graph
-    size_node = next(n for n in small.graph.nodes if n.label == "#size:body")
-    assert size_node.role == "decision" and size_node.domain == SIZE_DOMAIN
-    assert small.bind["#size:body"] == size_var("body")
-    assert set(roles(small.graph)["decision"]) == {"#dir", "#pose", "#size:body"}
-    bindings = {"#dir1": "top", "#pose12": [0.0, 1.0, 0.5], **size_constants(small_geometry)}
-    assert small.x(bindings)["#size:body"] == [0.042, 0.037, 0.147]
-    plain = failure_graph(world.skeleton, 1, outcome.failed, encodings=Encodings(small_geometry))
-    assert "#size:body" not in plain.bind  # off by default: the name alone (the paper's)
-    huge, _ = failure((0.6, 0.05, 0.1))  # beyond the size domain: the name alone
-    assert "#size:body" not in huge.bind and "#pose" in huge.bind
-
-
-def test_size_inputs_make_no_graph_of_a_failure_without_decisions():
-    """A pick from a fixed pose with a fixed grasp fails with nothing the search chooses: its
-    graph stays without a binding, size or not, so it is never posted."""
-    call = OperatorCall("Inv-kin", ("body", "pose0", "top"), ("#config1",))
-    skeleton = Skeleton((Layer("transition", (call,)),))
-    geometry = WorldGeometry(body_sizes=(("body", (0.04, 0.04, 0.1)),))
-    fg = failure_graph(
-        skeleton, 0, CheckResult(call, False), encodings=Encodings(geometry, size_inputs=True)
-    )
-    assert fg.bind == {}
-    assert all(n.role != "decision" for n in fg.graph.nodes)
 
 
 def test_with_relative_pairs_a_placement_is_marked_relative_only():
-    """The switch marks every framed planar pose of a graph (with or without metres); the
-    encoder then drops its own columns only where the type holds a pair of them. Off, the
-    domain is the declared one, so the paper's types keep their ids."""
+    """The switch marks every framed planar pose of a graph; the encoder then drops its own
+    columns only where the type holds a pair of them. Off, the domain is the declared one, so
+    the paper's types keep their ids."""
     skeleton = regrasp_skeleton(pose=pose_domain("region2"))
-    geometry = WorldGeometry(placement_extents=(("#pose12", (0.21, 0.07)),))
     shelf_ik = CheckResult(skeleton.transitions[3].calls[0], False)
 
     def pose_of(encodings: Encodings):
         graph = failure_graph(skeleton, 3, shelf_ik, encodings=encodings).graph
         return next(n.domain for n in graph.nodes if n.label == "#pose")
 
-    marked = pose_of(Encodings(geometry, relative_pairs=True))
-    assert marked.relative_only and marked.scale == [0.21, 0.07]
-    assert pose_of(Encodings(geometry, relative_pairs=True, metric_frames=False)).relative_only
-    assert pose_of(Encodings(geometry)).relative_only is None
+    marked = pose_of(Encodings(relative_pairs=True))
+    assert marked.relative_only and marked.scale is None
+    assert pose_of(Encodings()).relative_only is None
 
 
 def test_with_periodic_headings_a_placement_is_marked_periodic():

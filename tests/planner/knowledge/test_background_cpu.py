@@ -10,7 +10,7 @@ def test_a_guided_run_counts_its_background_threads_and_a_plain_one_has_none(liv
     common = dict(kb_url=live_kb.url, kb=live_kb.name, max_rollouts=30, stop_at_first=False)
     guided = run_plan("analytic:deskP", "cp-bo", 3, **common)
     plain = run_plan("analytic:deskP", "quasi-random", 3, max_rollouts=30, stop_at_first=False)
-    assert guided.points_posted > 0
+    assert guided.knowledge.points_posted > 0
     assert guided.background_cpu_s > 0.0
     assert guided.to_json()["background_cpu_s"] == guided.background_cpu_s
     assert plain.background_cpu_s < 0.05

@@ -44,7 +44,7 @@ def test_a_binding_found_before_or_during_a_run_is_handed_out_once(live_kb) -> N
         assert seen[-1] == later and b.stats.found_followed == 2
         for session in (a, b, other_task, off):
             session.close()
-            assert session.stats.errors == 0
+            assert session.stats.kb_errors == 0
 
 
 def test_a_task_run_again_follows_the_binding_found_before(live_kb) -> None:

@@ -33,7 +33,7 @@ def _feasible_grasps(task: str = "desk") -> list[str]:
 
 
 def _active_types(session: KnowledgeSession) -> set[str]:
-    return {a.type_id for a in session._active.values()}
+    return {a.type_id for a in session.active.values()}
 
 
 def test_a_planners_model_takes_in_another_planners_points_before_any_refit(live_kb):
@@ -52,25 +52,25 @@ def test_a_planners_model_takes_in_another_planners_points_before_any_refit(live
         assert _active_types(b) == {type_id}
         grasp = b.skeleton.decisions[0]
         assert b.suggest(grasp, {}, [], b.constraints_at("#dir1", {}), seed=0) is not None
-        held = b.local.model(type_id)
-        fetches = b.local.fetches
+        held = b.guidance.local.model(type_id)
+        fetches = b.guidance.local.fetches
         xs = [{"#dir": c} for c in feasible[:2]]
         z = SpaceEncoder(held.space).encode_points(xs)
         before = held.predictor.proba(z)
 
         for rollout, choice in enumerate(feasible[:2], start=2):
             _grasp(a, choice, rollout)
-        assert b.local.model(type_id).predictor.proba(z) == pytest.approx(before)
+        assert b.guidance.local.model(type_id).predictor.proba(z) == pytest.approx(before)
         b.on_rollout_end(1)
 
-        after = b.local.model(type_id)
-        assert after.version == held.version and b.local.fetches == fetches
+        after = b.guidance.local.model(type_id)
+        assert after.version == held.version and b.guidance.local.fetches == fetches
         assert b.stats.live_points == 2 and after.n_points == held.n_points + 2
         # Two feasible points where the model held none: P(feasible) rises there.
         assert all(after.predictor.proba(z) > before + 0.1)
         for session in (a, b):
             session.close()
-        assert b.stats.errors == 0
+        assert b.stats.kb_errors == 0
 
 
 def test_the_own_points_of_a_planner_do_not_come_back_to_it(live_kb):
@@ -84,7 +84,7 @@ def test_the_own_points_of_a_planner_do_not_come_back_to_it(live_kb):
             _grasp(b, choice, rollout)
         b.on_rollout_end(4)
         b.close()
-        assert b.points_posted == 3 and b.stats.live_points == 0 and b.stats.errors == 0
+        assert b.points_posted == 3 and b.stats.live_points == 0 and b.stats.kb_errors == 0
 
 
 @pytest.mark.parametrize("background", [False, True])
@@ -94,7 +94,7 @@ def test_a_type_another_planner_creates_becomes_active_at_once(live_kb, backgrou
             client, live_kb.name, analytic_world("desk"), background=background, config=LIVE
         )
         b.prematch()
-        assert b.stats.types_active == 0 and b._absent
+        assert b.stats.types_active == 0 and b.matcher._absent
 
         a = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
         a.prematch()
@@ -111,12 +111,12 @@ def test_a_type_another_planner_creates_becomes_active_at_once(live_kb, backgrou
         assert [c.type_id for c in constraints] == [type_id]
         grasp = b.skeleton.decisions[0]
         assert b.suggest(grasp, {}, [], constraints, seed=0) is not None
-        model = b.local.model(type_id)
+        model = b.guidance.local.model(type_id)
         blocked = SpaceEncoder(model.space).encode_points([{"#dir": BLOCKED}])
         assert model.predictor.proba(blocked)[0] < 0.5  # A's failure there, in B's model
         for session in (a, b):
             session.close()
-        assert b.stats.errors == 0
+        assert b.stats.kb_errors == 0
 
 
 def test_a_planner_that_polls_for_nothing_polls_less_until_points_come(live_kb):
@@ -138,19 +138,25 @@ def test_a_planner_that_polls_for_nothing_polls_less_until_points_come(live_kb):
         }
         for session in sessions.values():
             session.prematch()
-        polls = {idle_max: s.live.polls for idle_max, s in sessions.items()}
+        polls = {idle_max: s.sharing.live.polls for idle_max, s in sessions.items()}
         for rollout in range(1, 41):
             for session in sessions.values():
                 session.on_rollout_end(rollout)
-        assert sessions[1].live.polls - polls[1] == 40
-        assert sessions[8].live.polls - polls[8] <= 8 and sessions[8].live.schedule.gap == 8
+        assert sessions[1].sharing.live.polls - polls[1] == 40
+        assert (
+            sessions[8].sharing.live.polls - polls[8] <= 8
+            and sessions[8].sharing.live.schedule.gap == 8
+        )
         # The found-bindings poll of the task follows the same rule.
-        assert sessions[1].found.schedule.gap == 1 and sessions[8].found.schedule.gap == 8
+        assert (
+            sessions[1].guidance.found.schedule.gap == 1
+            and sessions[8].guidance.found.schedule.gap == 8
+        )
 
         _grasp(a, feasible[0], rollout=2)
         for rollout in range(41, 50):
             sessions[8].on_rollout_end(rollout)
-        assert sessions[8].stats.live_points == 1 and sessions[8].live.schedule.gap <= 2
+        assert sessions[8].stats.live_points == 1 and sessions[8].sharing.live.schedule.gap <= 2
         for session in (a, *sessions.values()):
             session.close()
-            assert session.stats.errors == 0
+            assert session.stats.kb_errors == 0

@@ -18,7 +18,7 @@ from client import CpkbClient
 from contract.models import SuggestIn
 from planner.config import KnowledgeConfig
 from planner.knowledge import KnowledgeSession
-from planner.knowledge.local import LocalSurrogates, PriorSettings, fetch_from, stated_prior
+from planner.knowledge.local import LocalSurrogates, fetch_from, stated_prior
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world
 from planner.search.samplers.quasi_random import QuasiRandomSampler
@@ -83,18 +83,16 @@ def test_own_points_weigh_in_before_the_next_fetch(counts):
     feasible at the grasp suggested): one success and one failure rate the grasp 1/2, as an
     untried one, and the next suggestion sees that value."""
     request = _grasp_request()
-    local = LocalSurrogates(
-        fetch_from(_memory(), OPTIMIZER), background=False, prior=PriorSettings(counts=counts)
-    )
+    local = LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False, prior_counts=counts)
     first = local.suggest(request, rollout=0, stored=0)
     type_id = min(first.p_feasible, key=first.p_feasible.get)
     constraint = next(c for c in request.constraints if c.type_id == type_id)
     x = {label: first.x[var] for label, var in constraint.bind.items()}
     model = local._models[type_id]
     z = SpaceEncoder(model.space).encode_points([x])
-    before = float(model.predictor().proba(z)[0])
+    before = float(model.model().proba(z)[0])
     local.note(type_id, x, feasible=False, batch=1)
-    after = float(model.predictor().proba(z)[0])
+    after = float(model.model().proba(z)[0])
     again = local.suggest(request, rollout=1, stored=0)
     assert after < before - 0.1
     assert local.fetches == 1  # weighed in without asking for the model again
@@ -114,7 +112,7 @@ def test_points_weighed_in_one_by_one_predict_as_all_at_once(counts):
 
     def planner() -> LocalSurrogates:
         fetch = fetch_from(_memory(), OPTIMIZER)
-        return LocalSurrogates(fetch, background=False, prior=PriorSettings(counts=counts))
+        return LocalSurrogates(fetch, background=False, prior_counts=counts)
 
     stepwise, at_once = planner(), planner()
     first = stepwise.suggest(request, rollout=0, stored=0)
@@ -139,64 +137,9 @@ def test_points_weighed_in_one_by_one_predict_as_all_at_once(counts):
         take(at_once, i, x)
     z = SpaceEncoder(stepwise._models[type_id].space).encode_points(xs)
     np.testing.assert_array_equal(
-        stepwise._models[type_id].predictor().proba(z),
-        at_once._models[type_id].predictor().proba(z),
+        stepwise._models[type_id].model().proba(z),
+        at_once._models[type_id].model().proba(z),
     )
-
-
-@pytest.mark.parametrize("base_rate", [False, True])
-def test_a_type_failing_everywhere_is_rated_by_its_base_rate_only_when_asked(base_rate):
-    """`knowledge.prior_base_rate`: a fetched stated prior, with this planner's own failures
-    since, is centred on the type's rate of feasible points (all of them counted); off, it
-    stays centred on 0.5."""
-    memory = _memory()
-    space = {"#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}}
-    rng = np.random.default_rng(0)
-    points = [({"#pose": [float(a), float(b)]}, False) for a, b in rng.random((6, 2)) * 0.2]
-    memory.add("failing", space_from_json(space), points)
-    local = LocalSurrogates(
-        fetch_from(memory, OPTIMIZER), background=False, prior=PriorSettings(base_rate=base_rate)
-    )
-    local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
-    model = local._models["failing"]
-    far = SpaceEncoder(model.space).encode_points([{"#pose": [0.9, 0.9]}])
-    assert float(model.predictor().proba(far)[0]) == pytest.approx(1 / 8 if base_rate else 0.5)
-    for i in range(2):
-        local.note("failing", {"#pose": [0.1 * i, 0.15]}, feasible=False, batch=1)
-    expected = 1 / 10 if base_rate else 0.5
-    assert float(model.predictor().proba(far)[0]) == pytest.approx(expected, abs=1e-6)
-
-
-@pytest.mark.parametrize("choice_rates", [False, True])
-def test_a_grasp_that_failed_everywhere_is_rated_by_its_rate_only_when_asked(choice_rates):
-    """`knowledge.prior_choice_rates`: a fetched stated prior whose points are failures of the
-    top grasp in one corner, with this planner's own failures since, rates the top grasp low
-    at the far corner too; an untried grasp there keeps the centre either way."""
-    memory = _memory()
-    space = {
-        "#dir": {"kind": "categorical", "choices": ["top", "front"]},
-        "#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]},
-    }
-    corner = [({"#dir": "top", "#pose": [0.05 * i, 0.0]}, False) for i in range(4)]
-    memory.add("shelf", space_from_json(space), corner)
-    local = LocalSurrogates(
-        fetch_from(memory, OPTIMIZER),
-        background=False,
-        prior=PriorSettings(choice_rates=choice_rates),
-    )
-    local._apply(local._fetch_now(["shelf"]), ["shelf"], 0, 0, 0)
-    local.note("shelf", {"#dir": "top", "#pose": [0.0, 0.1]}, feasible=False, batch=1)
-    model = local._models["shelf"]
-    encoder = SpaceEncoder(model.space)
-    top, front = (
-        float(model.predictor().proba(encoder.encode_points([{"#dir": d, "#pose": [1.0, 1.0]}]))[0])
-        for d in ("top", "front")
-    )
-    assert front == pytest.approx(0.5, abs=0.02)
-    if choice_rates:
-        assert top < 0.5 * (2 * 0.5 / 7) / 0.5 + 1e-9  # the rate of five failures, 1 / 7
-    else:
-        assert top == pytest.approx(0.5, abs=0.02)
 
 
 @pytest.mark.parametrize("counts", [0.0, 2.0])
@@ -207,19 +150,17 @@ def test_a_stated_prior_counts_this_planners_failures_only_when_asked(counts):
     memory = _memory()
     space = {"#pose": {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}}
     memory.add("failing", space_from_json(space), [({"#pose": [0.2, 0.2]}, False)])
-    local = LocalSurrogates(
-        fetch_from(memory, OPTIMIZER), background=False, prior=PriorSettings(counts=counts)
-    )
+    local = LocalSurrogates(fetch_from(memory, OPTIMIZER), background=False, prior_counts=counts)
     local._apply(local._fetch_now(["failing"]), ["failing"], 0, 0, 0)
     model = local._models["failing"]
     there = SpaceEncoder(model.space).encode_points([{"#pose": [0.2, 0.2]}])
-    once = float(model.predictor().proba(there)[0])
+    once = float(model.model().proba(there)[0])
     for _ in range(2):
         local.note("failing", {"#pose": [0.2, 0.2]}, feasible=False, batch=1)
-    thrice = float(model.predictor().proba(there)[0])
+    thrice = float(model.model().proba(there)[0])
     for _ in range(3):
         local.note("failing", {"#pose": [0.2, 0.2]}, feasible=False, batch=1)
-    six = float(model.predictor().proba(there)[0])
+    six = float(model.model().proba(there)[0])
     if counts:
         assert once == pytest.approx(1 / 3, abs=1e-6) and thrice == pytest.approx(1 / 5, abs=1e-6)
         assert six == pytest.approx(1 / 8, abs=1e-6)
@@ -313,9 +254,10 @@ def test_a_planner_answers_its_own_suggestions(live_kb):
     common = {"kb_url": live_kb.url, "kb": live_kb.name}
     run_plan("analytic:deskP", "cp-bo", 3, max_rollouts=30, stop_at_first=False, **common)
     result = run_plan("analytic:desk", "cp-bo", 3, **common)
-    assert result.solved and result.kb_errors == 0
-    assert result.suggestions > 0 and result.local_suggestions == result.suggestions
-    assert 0 < result.model_fetches <= result.suggestions
+    assert result.solved and result.knowledge.kb_errors == 0
+    assert result.knowledge.suggestions > 0
+    assert result.knowledge.local_suggestions == result.knowledge.suggestions
+    assert 0 < result.knowledge.model_fetches <= result.knowledge.suggestions
 
 
 @pytest.mark.slow
@@ -364,65 +306,19 @@ def test_a_type_this_planner_creates_guides_at_once_as_the_service_would(live_kb
         session.prematch()
         grasp = world.skeleton.decisions[0]
         assert session.suggest(grasp, {}, [], session.constraints_at("#dir1", {}), seed=0)
-        known = set(session._active)
+        known = set(session.active)
         bindings = {"#dir1": "back"}  # blocked at desk's start pose: not a deskP constraint
         session.on_transition(0, bindings, world.transition(0, bindings, None), rollout=1)
         session.on_rollout_end(1)
-        new = [a for key, a in session._active.items() if key not in known]
+        new = [a for key, a in session.active.items() if key not in known]
         assert len(new) == 1 and new[0].stored_with == 0  # nothing to wait for
-        model = session.local._models[new[0].type_id]
+        model = session.guidance.local._models[new[0].type_id]
         assert not model.fetched
         xs = [{"#dir": choice} for choice in grasp.domain.choices]
-        mine = model.predictor().proba(SpaceEncoder(model.space).encode_points(xs))
+        mine = model.model().proba(SpaceEncoder(model.space).encode_points(xs))
         served = client.predict(live_kb.name, new[0].type_id, xs)
         assert list(mine) == pytest.approx(served, rel=1e-6, abs=1e-9) and min(served) < 0.5
         session.close()
-
-
-PLACE = {"kind": "continuous", "low": [0.0, 0.0], "high": [1.0, 1.0]}
-
-
-def _learnt_elsewhere() -> InMemoryModels:
-    """A type another task taught: a placement is feasible where its first coordinate > 0.5."""
-    rng = np.random.default_rng(3)
-    points = [({"#pose": list(x)}, bool(x[0] > 0.5)) for x in rng.random((40, 2))]
-    memory = InMemoryModels()
-    memory.add("T", space_from_json({"#pose": PLACE}), points)
-    return memory
-
-
-def _after_own_points(evidence: bool, feasible: bool) -> tuple[LocalSurrogates, np.ndarray]:
-    """This run's six placements where the model promised success, all `feasible`; and its
-    P(feasible) at two places it has not tried, one on either side."""
-    local = LocalSurrogates(
-        fetch_from(_learnt_elsewhere(), OPTIMIZER), background=False, model_evidence=evidence
-    )
-    request = SuggestIn.model_validate(
-        {
-            "space": {"p": PLACE},
-            "constraints": [{"type_id": "T", "bind": {"#pose": "p"}}],
-        }
-    )
-    local.suggest(request, rollout=0, stored=0)
-    for i in range(6):
-        local.note("T", {"#pose": [0.6 + 0.07 * i, 0.9]}, feasible, batch=1)
-    untried = [{"#pose": [0.75, 0.1]}, {"#pose": [0.25, 0.1]}]
-    z = SpaceEncoder(space_from_json({"#pose": PLACE})).encode_points(untried)
-    return local, local.model("T").predictor.proba(z)
-
-
-def test_a_model_that_keeps_promising_what_fails_here_hands_over_to_this_runs_points() -> None:
-    _, (right_side, left_side) = _after_own_points(evidence=False, feasible=False)
-    assert right_side - left_side > 0.5  # the other task's lesson, unshaken by six failures
-    doubted, (right_side, left_side) = _after_own_points(evidence=True, feasible=False)
-    assert abs(right_side - left_side) < 0.15  # this run's evidence speaks, and it has none there
-    assert doubted._models["T"].evidence.weight < 0.1
-
-
-def test_a_model_that_keeps_being_right_here_keeps_its_say() -> None:
-    local, (right_side, left_side) = _after_own_points(evidence=True, feasible=True)
-    assert local._models["T"].evidence.weight > 0.9
-    assert right_side - left_side > 0.5
 
 
 def test_a_cp_bo_planner_loads_without_torch() -> None:

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import pytest
 
 from client import CpkbClient
-from planner.config import KnowledgeConfig
 from planner.failures import failure_graph
 from planner.knowledge import KnowledgeSession
 from planner.run import run_plan
@@ -99,10 +96,11 @@ def test_a_later_task_activates_the_types_before_any_failure(live_kb):
 def test_run_plan_reports_what_the_knowledge_base_did(live_kb):
     common = {"kb_url": live_kb.url, "kb": live_kb.name}
     before = run_plan("analytic:deskP", "cp-bo", 3, max_rollouts=30, stop_at_first=False, **common)
-    assert before.points_posted > 0 and before.types_activated == 0
+    assert before.knowledge.points_posted > 0 and before.knowledge.types_activated == 0
     after = run_plan("analytic:desk", "cp-bo", 3, **common)
     assert after.solved
-    assert after.types_activated >= 1 and after.points_activated >= before.points_posted // 2
+    assert after.knowledge.types_activated >= 1
+    assert after.knowledge.points_activated >= before.knowledge.points_posted // 2
     report = after.to_json()
     for key in ("task", "method", "seed", "solved", "rollouts", "wall_s", "bindings", "kb_s"):
         assert key in report
@@ -170,12 +168,14 @@ def test_sessions_of_one_task_share_its_failure_graphs(live_kb):
         first.prematch()
         again = KnowledgeSession(client, live_kb.name, analytic_world("desk"), background=False)
         other = KnowledgeSession(client, live_kb.name, analytic_world("deskP"), background=False)
-        assert first._graphs and again._graphs is first._graphs
-        assert other._graphs is not first._graphs
+        assert first.matcher._graphs and again.matcher._graphs is first.matcher._graphs
+        assert other.matcher._graphs is not first.matcher._graphs
         again.prematch()
         other.prematch()
-        shared = set(first._graphs) & set(other._graphs)
-        assert shared and all(first._graphs[k] is not other._graphs[k] for k in shared)
+        shared = set(first.matcher._graphs) & set(other.matcher._graphs)
+        assert shared and all(
+            first.matcher._graphs[k] is not other.matcher._graphs[k] for k in shared
+        )
         for session in (first, again, other):
             session.close()
 
@@ -205,47 +205,9 @@ def test_a_failure_prematch_found_absent_becomes_a_type_without_asking_again(liv
         assert len(client.matched) == 1
         assert session.stats.types_active > 0
         stored = {t.type_id for t in client.list_types(live_kb.name)}
-        active = {a.type_id for a in session._active.values()}
+        active = {a.type_id for a in session.active.values()}
         assert active == stored
         assert {
             client.match_types(live_kb.name, [a.failure.graph])[0].type_id
-            for a in session._active.values()
+            for a in session.active.values()
         } == stored
-
-
-def sized_desk(size: tuple[float, float, float]):
-    return replace(analytic_world("desk"), geometry=WorldGeometry(body_sizes=(("body", size),)))
-
-
-def test_with_size_inputs_a_box_of_another_size_uses_the_first_ones_points(live_kb):
-    """Points record the body's size; a task with a box of another size under the same name
-    takes up the same types before any failure, and its suggestions hold its size fixed."""
-    small, large = (0.04, 0.04, 0.15), (0.05, 0.06, 0.2)
-    config = KnowledgeConfig(size_inputs=True, movable_names=True)
-    with CpkbClient(live_kb.url) as client:
-        first = KnowledgeSession(
-            client, live_kb.name, sized_desk(small), background=False, config=config
-        )
-        first.prematch()
-        PWUCT(first.world, QuasiRandomSampler(), seed=0, observer=first).run(
-            40, stop_at_first=False
-        )
-        first.close()
-        shelf = next(t for t in client.list_types(live_kb.name) if "shelf" in t.context)
-        assert set(shelf.decisions) == {"#dir", "#pose", "#size:body"}
-        sizes = {tuple(p.x["#size:body"]) for p in client.iter_points(live_kb.name, shelf.type_id)}
-        assert sizes == {small}
-
-        second = KnowledgeSession(
-            client, live_kb.name, sized_desk(large), background=False, config=config
-        )
-        second.prematch()
-        assert second.stats.types_activated > 0 and shelf.type_id in second._types
-        place = second.skeleton.decisions[1]
-        constraints = second.constraints_at(place.var, {"#dir1": "top"})
-        assert {c.type_id for c in constraints} >= {shelf.type_id}
-        answer = second.suggest(place, {"#dir1": "top"}, [], constraints, seed=0)
-        # The size is bound in the request (fixed, not searched): else it would not validate.
-        assert answer is not None and answer.method == "mpf-local" and set(answer.x) == {place.var}
-        assert second.stats.errors == 0
-        second.close()

@@ -61,10 +61,14 @@ def test_cp_bo_with_deskP_knowledge_needs_fewer_rollouts_than_quasi_random(kb_se
                 stop_at_first=False,
                 **common,
             )
-            assert learn.points_posted > 30
+            assert learn.knowledge.points_posted > 30
             wait_for_fits(client, kb)
             result = run_plan("analytic:desk", "cp-bo", seed, **common)
-            assert result.solved and result.types_activated >= 1 and result.suggestions >= 1
+            assert (
+                result.solved
+                and result.knowledge.types_activated >= 1
+                and result.knowledge.suggestions >= 1
+            )
             guided.append(result.rollouts)
             baseline.append(run_plan("analytic:desk", "quasi-random", seed).rollouts)
     # The median: a guided run's count depends on when the service's fits land (a few runs
@@ -309,10 +313,10 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
         return result, {k: list(v) for k, v in seen.items()}
 
     extended, used = run("cp-bo")
-    assert extended.types_prematched >= 1
+    assert extended.knowledge.types_prematched >= 1
     assert 4 in used["n"] and any(used["ahead"]) and used["untried"]
     paper, used = run("cp-bo-paper")
-    assert paper.types_prematched == 0 and paper.types_activated >= 1
+    assert paper.knowledge.types_prematched == 0 and paper.knowledge.types_activated >= 1
     assert used["n"] and set(used["n"]) == {1} and not any(used["ahead"]) and not used["untried"]
     assert paper.config["cp_bo"] == {
         "batch": 1,
@@ -321,8 +325,6 @@ def test_cp_bo_paper_switches_every_extension_off_in_a_run(live_kb, monkeypatch)
         "lookahead": False,
         "continuations": False,
         "prematch": False,
-        "explore_below": 0.0,
-        "random_every": 0,
     }
     search = paper.config["search"]
     assert not (search["outlook_widening"] or search["outlook_selection"])
@@ -348,96 +350,17 @@ def test_deterministic_runs_of_one_seed_on_fresh_knowledge_bases_agree(kb_servic
             "analytic:deskP", "cp-bo", 7, max_rollouts=15, stop_at_first=False, **common
         )
         target = run_plan("analytic:desk", "cp-bo", 7, max_rollouts=300, **common)
-        assert target.kb_errors == 0 and target.suggestions >= 1, target.notes
-        assert "fit" in target.kb_parts
+        assert target.knowledge.kb_errors == 0 and target.knowledge.suggestions >= 1, target.notes
+        assert "fit" in target.knowledge.kb_parts
         return [
-            (r.rollouts, r.bindings, r.points_posted, r.suggestions, r.types_active)
+            (
+                r.rollouts,
+                r.bindings,
+                r.knowledge.points_posted,
+                r.knowledge.suggestions,
+                r.knowledge.types_active,
+            )
             for r in (learn, target)
         ]
 
     assert chain() == chain()
-
-
-class _RatedKnowledge(_ScriptedKnowledge):
-    """Untried placements along the diagonal, each answer rated `mpf`."""
-
-    def __init__(self, skeleton, mpf: float) -> None:
-        super().__init__(skeleton)
-        self.mpf = mpf
-
-    def suggest(self, var, path, siblings, constraints, seed, *, n=1):
-        from contract.models import SuggestedPoint, SuggestOut
-
-        answer = super().suggest(var, path, siblings, constraints, seed, n=n)
-        shift = 0.01 * len(siblings) if not hasattr(var.domain, "choices") else 0.0
-        points = [
-            SuggestedPoint(
-                x={k: [x + shift for x in v] if isinstance(v, list) else v for k, v in p.x.items()},
-                mpf=self.mpf,
-                p_feasible={},
-            )
-            for p in answer.batch
-        ]
-        return SuggestOut(x=points[0].x, mpf=self.mpf, p_feasible={}, batch=points)
-
-
-def _placements(sampler, pose, n: int) -> list:
-    import numpy as np
-
-    from planner.search.samplers.base import SampleContext
-
-    rng = np.random.default_rng(0)
-    values: list = []
-    for rollout in range(1, n + 1):
-        siblings = tuple(v.value if hasattr(v, "value") else v for v in values)
-        values.append(sampler.propose(SampleContext(pose, {}, siblings, (), (), 1, rollout, rng)))
-    return values
-
-
-@pytest.mark.parametrize(("mpf", "guided"), [(0.3, False), (0.7, True)])
-def test_a_placement_rated_below_explore_below_is_space_filling(mpf, guided):
-    """A proposal the knowledge base rates below `explore_below` gives way to a space-filling
-    value (counted in the run's `explored`), rated as the proposal was, so that the node's
-    outlook stays the knowledge base's best; one rated above it is taken."""
-    from contract.models import Constraint
-    from planner.config import CpBoConfig
-    from planner.search.analytic import analytic_world
-    from planner.search.samplers.base import Proposal
-    from planner.search.samplers.cp_bo import CpBoSampler
-
-    pose = analytic_world("desk").skeleton.decisions[1]
-    knowledge = _RatedKnowledge(analytic_world("desk").skeleton, mpf)
-    knowledge.active = [Constraint(type_id="shelf", bind={"#pose": pose.var})]
-    sampler = CpBoSampler(knowledge, CpBoConfig(explore_below=0.5))  # type: ignore[arg-type]
-    values = _placements(sampler, pose, 3)
-    assert all(isinstance(v, Proposal) and v.p_feasible == mpf for v in values)
-    assert knowledge.stats.explored == (0 if guided else 3)
-    diagonal = [all(x == v.value[0] for x in v.value) for v in values]
-    assert all(diagonal) is guided  # the scripted answers lie on the diagonal
-    assert all(len(v.value) == 3 and all(0 <= x <= 1 for x in v.value) for v in values)
-    assert len({tuple(v.value) for v in values}) == 3
-
-
-def test_random_every_interleaves_space_filling_placements_but_never_grasps():
-    """With `random_every=3` the third and sixth children of a placement are space-filling;
-    a grasp is always the knowledge base's choice."""
-    import numpy as np
-
-    from contract.models import Constraint
-    from planner.config import CpBoConfig
-    from planner.search.analytic import analytic_world
-    from planner.search.samplers.base import Proposal, SampleContext
-    from planner.search.samplers.cp_bo import CpBoSampler
-
-    grasp, pose = analytic_world("desk").skeleton.decisions
-    knowledge = _RatedKnowledge(analytic_world("desk").skeleton, 0.9)
-    knowledge.active = [Constraint(type_id="shelf", bind={"#dir": grasp.var, "#pose": pose.var})]
-    sampler = CpBoSampler(knowledge, CpBoConfig(random_every=3))  # type: ignore[arg-type]
-    values = _placements(sampler, pose, 6)
-    diagonal = [all(x == v.value[0] for x in v.value) for v in values]
-    assert diagonal == [True, True, False, True, True, False]
-    assert knowledge.stats.explored == 2
-    rng = np.random.default_rng(0)
-    for tried in ((), ("front",), ("front", "top")):
-        chosen = sampler.propose(SampleContext(grasp, {}, tried, (), (), 0, 1, rng))
-        assert isinstance(chosen, Proposal) or len(grasp.domain.choices) - len(tried) == 1

@@ -109,7 +109,7 @@ def test_a_cp_bo_run_restarts_by_default_and_records_it(live_kb):
     config = PlanConfig().with_overrides({"search.restart_unit": 1})
     common = {"max_rollouts": 10, "kb_url": live_kb.url, "kb": live_kb.name, "config": config}
     result = run_plan(Unplaceable(), "cp-bo", 3, **common)
-    assert not result.solved and result.kb_errors == 0
+    assert not result.solved and result.knowledge.kb_errors == 0
     assert "tree restarted 6 times" in result.notes  # runs 1,1,2,1,1,2 of the 10 rollouts
     assert result.config["search"]["restart_unit"] == 1
     paper = run_plan(Unplaceable(), "cp-bo-paper", 3, **common)

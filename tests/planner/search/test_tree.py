@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from contract.models import CategoricalDomain, ContinuousDomain
-from planner.config import ConfigError, SearchConfig
+from planner.config import SearchConfig
 from planner.search import PWUCT
 from planner.search.analytic import analytic_world, shelf_feasible
 from planner.search.samplers.base import Proposal
@@ -20,9 +20,7 @@ from planner.search.tree import (
     child_outlook,
     close,
     comparable_outlook,
-    current_view,
     mark_hopeless,
-    note_choices,
     note_proposal,
     outlook,
     reward,
@@ -104,49 +102,6 @@ def test_a_hopeless_child_lets_its_parent_widen_but_stays_selectable():
     add_child(trapped.next, "a", FAIL)
     add_child(trapped.next, "b", FAIL)  # the trapped subtree closes: counted once, as closed
     assert trapped.closed and n.n_hopeless == 0 and n.n_closed == 2 and dead.closed
-
-
-def test_a_choice_node_whose_every_open_choice_is_hopeless_lets_the_node_above_widen():
-    """`search.hopeless_choices`: below a placement, a grasp node that has tried both grasps,
-    one a dead end and the other leading to a hopeless node, is hopeless itself (the placement
-    node widens); once that node is no longer hopeless, neither is the grasp node."""
-    placement = node()
-    placement.visits = 20  # below 13.5 * 2^2: the PW law alone would not widen
-    held = add_child(placement, [0.2])
-    add_child(placement, [0.7], FAIL)
-    grasps = held.next
-    grasps.var = CATEGORICAL_AB
-    add_child(grasps, "a", FAIL)
-    deep = add_child(grasps, "b")
-    note_choices(grasps)
-    assert not grasps.hopeless and not widens(placement, CONFIG.pw_k)
-    mark_hopeless(deep.next, True)
-    note_choices(grasps)
-    assert grasps.hopeless and placement.n_hopeless == 1 and widens(placement, CONFIG.pw_k)
-    mark_hopeless(deep.next, False)
-    note_choices(grasps)
-    assert not grasps.hopeless and placement.n_hopeless == 0
-
-
-def test_leaving_hopeless_subtrees_selects_a_hopeful_child_over_a_deeper_hopeless_one():
-    n = node()
-    n.visits = 10
-    deep = add_child(n, [0.2], r=0.09)
-    shallow = add_child(n, [0.7], r=0.02)
-    mark_hopeless(deep.next, True)
-    leave = replace(PLAIN, leave_hopeless=True)
-    assert ucb_select(n, PLAIN) is deep
-    assert ucb_select(n, leave) is shallow
-    mark_hopeless(shallow.next, True)  # every open child hopeless: plain UCB again
-    assert ucb_select(n, leave) is deep
-
-
-def test_a_choice_node_with_untried_choices_is_not_made_hopeless_by_its_children():
-    choices = node(CategoricalDomain(choices=["a", "b", "c"]))
-    held = add_child(choices, "a")
-    mark_hopeless(held.next, True)
-    note_choices(choices)
-    assert not choices.hopeless
 
 
 def test_a_categorical_decision_stops_at_its_number_of_choices():
@@ -329,58 +284,6 @@ def test_failures_through_a_choice_lower_its_outlook_but_not_a_placement_s():
     tried = add_child(placements, [0.5], visits=12, r=0.075)
     note_proposal(tried.next, 0.5, CONFIG)
     assert child_outlook(tried, W) == 0.5
-    assert child_outlook(tried, W, continuous_failures=True) == pytest.approx(W * 0.5 / (W + 12))
-
-
-def test_counting_a_placement_s_failures_lets_selection_leave_it():
-    """With `outlook_continuous_failures`, a box placed where the next ones keep failing loses
-    the selection to a sibling that has failed less, although the model rates both alike."""
-    placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
-    blocked = add_child(placements, [0.5], visits=12, r=0.075)
-    other = add_child(placements, [0.1], visits=2, r=0.05)
-    note_proposal(blocked.next, 0.45, CONFIG)
-    note_proposal(other.next, 0.45, CONFIG)
-    placements.visits = 15  # not a free visit (outlook_free_every)
-    counting = replace(CONFIG, outlook_continuous_failures=True, ucb_c=0.0)
-    assert ucb_select(placements, replace(counting, outlook_continuous_failures=False)) is blocked
-    assert ucb_select(placements, counting) is other
-
-
-@pytest.mark.parametrize("rule", ["view", "counted"])
-def test_a_placement_whose_grasps_are_all_tried_is_rated_by_the_open_ones(rule):
-    """With `outlook_exhausted`, a placement under which every grasp has been tried, and only
-    one whose placements the knowledge base rates as hopeless is left open, is rated by that
-    view (counted against the grasp's failures with `counted`): selection leaves it for a
-    sibling placement, although both last proposed alike."""
-    placements = node(ContinuousDomain(low=[0.0], high=[1.0]))
-    stuck = add_child(placements, [0.5], visits=20, r=0.075)
-    other = add_child(placements, [0.1], visits=2, r=0.05)
-    grasps = stuck.next
-    grasps.var = other.next.var = DecisionVar(
-        "#g", "#g", CategoricalDomain(choices=["top", "side"]), OperatorCall("Sample", (), ("#g",))
-    )
-    note_proposal(grasps, 0.4, CONFIG)
-    top = add_child(grasps, "top", visits=19, r=0.075)
-    add_child(grasps, "side", FAIL)
-    note_proposal(top.next, 0.05, CONFIG)  # no placement follows `top`
-    note_proposal(other.next, 0.4, CONFIG)
-    placements.visits = 23  # not a free visit (outlook_free_every)
-    on = replace(CONFIG, outlook_exhausted=rule, ucb_c=0.0)
-    view = 0.05 if rule == "view" else W * 0.05 / (W + 19)
-    assert child_outlook(stuck, W) == 0.4
-    assert child_outlook(stuck, W, exhausted=rule) == pytest.approx(view)
-    assert ucb_select(placements, replace(on, outlook_exhausted="off")) is stuck
-    assert ucb_select(placements, on) is other
-    open_top = add_child(other.next, "top")  # choices left: the proposal's view stands
-    note_proposal(open_top.next, 0.05, CONFIG)
-    assert child_outlook(other, W, exhausted=rule) == 0.4
-    unrated = add_child(grasps, "side")  # a retried choice, its node not rated yet
-    assert current_view(grasps) == 0.4 and unrated.next.last_p_feasible is None
-
-
-def test_outlook_exhausted_is_one_of_its_rules():
-    with pytest.raises(ConfigError, match="outlook_exhausted"):
-        SearchConfig(outlook_exhausted="yes")
 
 
 def test_an_outlook_is_comparable_while_values_are_left_and_children_are_rated():
