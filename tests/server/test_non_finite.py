@@ -28,13 +28,8 @@ def post_text(client: Any, path: str, text: str) -> Any:
 def bodies(type_id: str) -> dict[str, tuple[str, str]]:
     """A request of each route that takes numbers, with `NUMBER` where a number goes."""
     pose = {"kind": "continuous", "low": [0.0], "high": [1.0]}
-    bind = [{"type_id": type_id, "bind": {"#pose": "p"}}]
     return {
         "bindings": ("/bindings", json.dumps({**GOOD_BINDING, "bindings": {"#p": ["NUMBER"]}})),
-        "pending": (
-            "/pending",
-            json.dumps({"run": "r", "served": [{"x": {"p": ["NUMBER"]}, "binds": bind}]}),
-        ),
         "suggest fixed": (
             "/suggest",
             json.dumps({"space": {"q": pose}, "fixed": {"p": ["NUMBER"]}}),
@@ -63,9 +58,6 @@ def test_every_route_refuses_a_non_finite_number(app_client: Any, number: str) -
         assert response.status_code == 422, (name, response.status_code, response.text[:300])
         json.loads(response.text)  # the refusal itself is valid JSON
     assert app_client.get(f"{KB}/bindings").json()["bindings"] == []
-    # Nothing was recorded as pending either: another run reads back no suggestion.
-    others = app_client.post(f"{KB}/pending", json={"run": "other", "type_ids": [type_id]})
-    assert others.status_code == 200 and others.json()["pending"] == []
 
 
 def poison(db_url: str) -> None:

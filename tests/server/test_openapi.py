@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from client import bindings, models
+from contract import bindings, models
 from server.api.responses import ErrorOut, ValidationErrorOut
 from tests.service_support import make_point
 
