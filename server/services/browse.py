@@ -7,31 +7,15 @@ from __future__ import annotations
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
 
-from sqlalchemy import Select, func, select
+from sqlalchemy import func, select
 
 from client.models import PointOut, TypeSummary
 from server.db import Store
 from server.orm import PointRow, TypeRow
 from server.services.kbs import kb_id
-from server.services.points import point_out
+from server.services.points import PointFilter, point_out
 from server.services.types import summary, type_row
-
-
-@dataclass(frozen=True)
-class PointFilter:
-    """Which points to show: a label (None: both) and a task name (None: every task)."""
-
-    feasible: bool | None = None
-    task: str | None = None
-
-    def apply(self, query: Select[Any]) -> Select[Any]:
-        if self.feasible is not None:
-            query = query.where(PointRow.feasible.is_(self.feasible))
-        if self.task is not None:
-            query = query.where(PointRow.task == self.task)
-        return query
 
 
 @dataclass(frozen=True)
