@@ -93,12 +93,6 @@ def _state(request: Request) -> tuple[Any, Any]:
     return request.app.state.store, request.app.state.hooks
 
 
-def _not_found(request: Request, exc: NotFound) -> HTMLResponse:
-    return templates.TemplateResponse(
-        request, "error.html", {"message": exc.detail}, status_code=404
-    )
-
-
 Offset = Annotated[int, Query(ge=0, le=10**9)]
 TypesLimit = Annotated[int, Query(ge=1, le=500)]
 
@@ -111,10 +105,7 @@ def index(
     limit: TypesLimit = views.TYPES_PER_PAGE,
 ) -> Response:
     store, _ = _state(request)
-    try:
-        data = views.overview(store, kb, offset=offset, limit=limit)
-    except NotFound as exc:
-        return _not_found(request, exc)
+    data = views.overview(store, kb, offset=offset, limit=limit)
     history = ""
     if data["kb"] is not None:
         history = Markup(figures.kb_history(store, data["kb"]))
@@ -143,10 +134,7 @@ def type_page(
 ) -> Response:
     store, hooks = _state(request)
     x, y = table.axes
-    try:
-        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
-    except NotFound as exc:
-        return _not_found(request, exc)
+    data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
     inputs = _inputs(request, kb, type_id)
