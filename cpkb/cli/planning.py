@@ -8,7 +8,14 @@ from typing import Any
 
 from cpkb.cli import CliError
 from cpkb.cli.config_args import add_config_arguments, plan_config
-from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
+from cpkb.cli.reach import (
+    EXIT_STATUS_HELP,
+    checked_kb_name,
+    checked_url,
+    explained,
+    probe,
+    require_kb,
+)
 
 METHODS = ("quasi-random", "mcts-bo", "cp-bo", "cp-bo-paper", "optuna-tpe")
 
@@ -42,7 +49,17 @@ def register(subparsers: Any) -> None:
         help="knowledge-base service URL, or its replicas' as URL1,URL2 (the client fails over); "
         "default: an embedded one",
     )
-    plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")
+    plan.add_argument(
+        "--kb",
+        default="default",
+        help="knowledge base name (default: default); any other must exist, or pass --create-kb",
+    )
+    plan.add_argument(
+        "--create-kb",
+        action="store_true",
+        help="create the --kb knowledge base if it does not exist (else a name that does not "
+        "exist is an error: a misspelt one would learn from nothing)",
+    )
     plan.add_argument("--token", help="access token (default: CPKB_TOKEN)")
     plan.add_argument(
         "--suggest-in",
@@ -116,11 +133,13 @@ def _check_knowledge(args: argparse.Namespace, token: str | None) -> None:
     from planner.search import samplers
 
     checked_kb_name(args.kb)
-    if args.kb_url is None or args.method not in samplers.methods():
+    if args.method not in samplers.methods() or not samplers.uses_knowledge(args.method):
         return
-    checked_url(args.kb_url)
-    if samplers.uses_knowledge(args.method):
-        probe(args.kb_url, token, kb=args.kb)
+    if args.kb_url is not None:
+        checked_url(args.kb_url)
+        probe(args.kb_url, token, kb=args.kb if args.create_kb else None)
+    if not args.create_kb:
+        require_kb(args.kb, args.kb_url, token)
 
 
 def _configured_token() -> str | None:
@@ -180,14 +199,24 @@ def _summary(result: Any) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
+    import httpx
+
+    from client import CpkbError
+    from cpkb.embedded import EmbeddedServiceError
     from planner.demo import run_demo
 
     if args.seeds < 1 or args.predecessor_rollouts < 1:
         raise CliError("--seeds and --predecessor-rollouts must be at least 1")
-    return run_demo(
-        seeds=args.seeds,
-        predecessor_rollouts=args.predecessor_rollouts,
-        db=args.db,
-        kb_url=args.kb_url,
-        prefix="analytic:" if args.analytic else "",
-    )
+    token = _configured_token()
+    if args.kb_url is not None:
+        probe(checked_url(args.kb_url), token)
+    try:
+        return run_demo(
+            seeds=args.seeds,
+            predecessor_rollouts=args.predecessor_rollouts,
+            db=args.db,
+            kb_url=args.kb_url,
+            prefix="analytic:" if args.analytic else "",
+        )
+    except (CpkbError, EmbeddedServiceError, httpx.HTTPError) as exc:
+        raise explained(exc, args.kb_url or "the embedded service", token) from None

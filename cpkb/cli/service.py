@@ -8,7 +8,7 @@ import socket
 from typing import Any
 
 from cpkb.cli import CliError
-from cpkb.cli.reach import checked_url
+from cpkb.cli.reach import checked_url, explained
 
 
 def register(subparsers: Any) -> None:
@@ -249,30 +249,19 @@ def _db_upgrade(args: argparse.Namespace) -> int:
     return 0
 
 
-def _client(args: argparse.Namespace) -> Any:
-    from client import CpkbClient
+def _run(args: argparse.Namespace, call: Any) -> Any:
+    """`call(client)`, a failed call to the service as the one-line error (exit 3) that `plan`
+    and `bench` give too."""
+    from client import CpkbClient, CpkbError
 
     settings = _settings(url=args.url)
-    checked_url(settings.url)
+    url = checked_url(settings.url)
     token = args.token or (settings.token.get_secret_value() if settings.token else None)
-    return CpkbClient(settings.url, timeout=30.0, retries=2, backoff=0.1, token=token)
-
-
-def _run(args: argparse.Namespace, call: Any) -> Any:
-    from client import CpkbError, ServiceUnavailable
-
-    with _client(args) as client:
+    with CpkbClient(url, timeout=30.0, retries=2, backoff=0.1, token=token) as client:
         try:
             return call(client)
-        except ServiceUnavailable as exc:
-            if exc.status is None:
-                raise CliError(
-                    f"cannot reach the knowledge base at {', '.join(client.urls)} "
-                    "(start it with `cpkb serve`, or pass --kb-url)"
-                ) from exc
-            raise CliError(str(exc.detail)) from exc
         except CpkbError as exc:
-            raise CliError(str(exc.detail)) from exc
+            raise explained(exc, url, token) from None
 
 
 def _console() -> Any:
