@@ -336,6 +336,8 @@ def _types(args: argparse.Namespace) -> int:
         caption=caption,
     )
     table.columns[0].no_wrap = True  # the id is what a user copies into an API call
+    for column in table.columns[1:]:
+        column.overflow = "fold"  # a long name wraps, never ends in an ellipsis
     for t, detail in zip(types, details, strict=True):
         updated = t.updated_at.strftime("%Y-%m-%d %H:%M:%S") if t.updated_at else ""
         fit, fitted = _fit_state(detail.surrogate, t.n_points)
