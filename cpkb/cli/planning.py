@@ -195,7 +195,9 @@ def _summary(result: Any) -> None:
             f"{result.points_posted} points posted; {result.suggestions} suggestions"
         )
     if result.bindings:
-        console.print("bindings: " + json.dumps(result.bindings))
+        # Plain print: rich wraps at 80 columns when piped, and this line is pasted whole into
+        # `cpkb render --binding`.
+        print("bindings: " + json.dumps(result.bindings), flush=True)
 
 
 def _demo(args: argparse.Namespace) -> int:

@@ -199,10 +199,10 @@ def _serve(args: argparse.Namespace) -> int:
             app = create_app(settings)
         except SecurityConfigError as exc:
             raise CliError(str(exc)) from exc
-        port = listener.getsockname()[1]
+        url = served_url(settings.host, listener.getsockname()[1])
         print(
-            f"cpkb: serving {_shown(settings.database_url)} at "
-            f"http://{settings.host}:{port} (API docs at /docs)",
+            f"cpkb: serving {_shown(settings.database_url)} at {url} (the dashboard; API docs "
+            f"at {url}docs); Ctrl-C stops it",
             flush=True,
         )
         from server.observability import configure_json_logging
@@ -215,6 +215,15 @@ def _serve(args: argparse.Namespace) -> int:
         )
         uvicorn.Server(config).run(sockets=[listener])
     return 0
+
+
+def served_url(host: str, port: int) -> str:
+    """The URL to open for a service listening on host:port: a wildcard address is reached on
+    loopback from this machine, an IPv6 address goes in brackets."""
+    shown = {"0.0.0.0": "127.0.0.1", "::": "[::1]", "": "127.0.0.1"}.get(host, host)
+    if ":" in shown and not shown.startswith("["):
+        shown = f"[{shown}]"
+    return f"http://{shown}:{port}/"
 
 
 def _listen(host: str, port: int) -> socket.socket:
