@@ -16,6 +16,7 @@ from server.dashboard.heatmap import (
     choose_slice,
     continuous_dims,
     render_heatmap_svg,
+    slice_at,
 )
 from server.dashboard.history_svg import render_history_svg
 from server.dashboard.slices import render_slices_svg
@@ -68,16 +69,24 @@ def inputs(
     kb: str,
     type_id: str,
     judge: EnginePredict | None = None,
+    hold: int | None = None,
 ) -> Inputs:
+    """`hold`: the id of the point the pictures are drawn through (NotFound if the type has
+    none such); by default the newest feasible point."""
     detail = types.get_type(store, kb, type_id)
     state = views.surrogate_state(hooks, kb, type_id) or {}
-    observed = views.observed_points(store, kb, type_id)
+    ids, observed = views.observed_points(store, kb, type_id)
+    if hold is None:
+        held = choose_slice(detail.space, observed, ids)
+    else:
+        point = browse.one_point(store, kb, type_id, hold)
+        held = slice_at(detail.space, point.x, f"point #{hold}, as chosen", hold)
     return Inputs(
         space=detail.space,
         relevance=views.dim_lengthscales(detail.space, state.get("lengthscales")),
         observed=observed,
         predict=predictor(engine, kb, type_id),
-        held=choose_slice(detail.space, observed),
+        held=held,
         judge=judge_of(judge, kb, type_id),
     )
 

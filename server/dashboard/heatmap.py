@@ -18,10 +18,9 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-import statistics
 import textwrap
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from html import escape
 
 from client.models import CategoricalDomain, ContinuousDomain
@@ -82,10 +81,14 @@ def panels_of(space: dict[str, CategoricalDomain | ContinuousDomain]) -> list[di
 
 @dataclass(frozen=True)
 class Slice:
-    """The values the dimensions off the axes are held at, and where they come from."""
+    """The point the dimensions off the axes are held at: its continuous values, its choices
+    (the slices hold them; the heat map draws a panel per choice), where it comes from, and
+    its id when it is a stored point."""
 
     values: dict[str, list[float]]
     origin: str
+    choices: dict[str, str] = field(default_factory=dict)
+    point_id: int | None = None
 
 
 def mid_range(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[str, list[float]]:
@@ -96,26 +99,80 @@ def mid_range(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[st
     }
 
 
+def _first_choices(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[str, str]:
+    return {lab: d.choices[0] for lab, d in space.items() if isinstance(d, CategoricalDomain)}
+
+
+def slice_at(
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    x: dict[str, Value],
+    origin: str,
+    point_id: int | None = None,
+) -> Slice:
+    """The slice through decision values `x` (a stored point's)."""
+    values = {lab: [float(v) for v in x[lab]] for lab in mid_range(space)}  # type: ignore[union-attr]
+    choices = {lab: str(x[lab]) for lab in _first_choices(space)}
+    return Slice(values, origin, choices, point_id)
+
+
 def choose_slice(
     space: dict[str, CategoricalDomain | ContinuousDomain],
     observed: Sequence[tuple[dict[str, Value], bool]],
+    ids: Sequence[int] | None = None,
 ) -> Slice:
-    """The latest infeasible point's continuous values (a map through a known failure shows
-    the boundary near it), else the data's median, else mid-range."""
-    mids = mid_range(space)
-    for x, feasible in reversed(observed):
-        if not feasible and all(isinstance(x.get(lab), list) for lab in mids):
-            return Slice({lab: list(x[lab]) for lab in mids}, "the latest infeasible point")  # type: ignore[arg-type]
-    if observed and mids:
-        values = {
-            lab: [
-                statistics.median(float(x[lab][i]) for x, _ in observed)  # type: ignore[index]
-                for i in range(len(mid))
-            ]
-            for lab, mid in mids.items()
-        }
-        return Slice(values, "the data's median")
-    return Slice(mids, "mid-range")
+    """The default slice: through the newest feasible point (the map then shows what the model
+    makes of a known success, where a planner wants to be), else the newest point, else
+    mid-range. `ids` are the observed points' ids, oldest first, to name the point."""
+    for k in range(len(observed) - 1, -1, -1):
+        x, feasible = observed[k]
+        if feasible:
+            point_id = ids[k] if ids is not None else None
+            return slice_at(space, x, _named(point_id, "the newest feasible point"), point_id)
+    if observed:
+        point_id = ids[-1] if ids is not None else None
+        return slice_at(space, observed[-1][0], _named(point_id, "the newest point"), point_id)
+    return Slice(mid_range(space), "mid-range", _first_choices(space))
+
+
+def _named(point_id: int | None, what: str) -> str:
+    return what if point_id is None else f"point #{point_id}, {what}"
+
+
+FADE_REACH = 0.5  # a point this far (RMS, in units of each dimension's range) is faded most
+FADE_FLOOR = 0.15  # the opacity of a point far from the slice: still there, plainly not on it
+
+
+def closeness(
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    x: dict[str, Value],
+    held: Slice,
+    shown: set[str],
+    with_choices: bool,
+) -> float:
+    """How near `x` lies to the slice in the dimensions the picture does not show: 1 on it,
+    falling to 0 at FADE_REACH (root mean square over the hidden continuous components, each
+    scaled to its range, and, `with_choices`, 1 for each choice that differs)."""
+    gaps: list[float] = []
+    for lab, domain in space.items():
+        if isinstance(domain, ContinuousDomain):
+            v = x.get(lab)
+            if not isinstance(v, list):
+                continue
+            for i, (lo, hi) in enumerate(zip(domain.low, domain.high, strict=True)):
+                if f"{lab}[{i}]" in shown or i >= len(v):
+                    continue
+                span = (hi - lo) or 1.0
+                gaps.append((float(v[i]) - held.values[lab][i]) / span)
+        elif with_choices and lab in held.choices:
+            gaps.append(0.0 if x.get(lab) == held.choices[lab] else 1.0)
+    if not gaps:
+        return 1.0
+    rms = math.sqrt(sum(g * g for g in gaps) / len(gaps))
+    return max(0.0, 1.0 - rms / FADE_REACH)
+
+
+def opacity(near: float) -> float:
+    return FADE_FLOOR + (1.0 - FADE_FLOOR) * near
 
 
 def grid_points(
@@ -214,7 +271,9 @@ def render_heatmap_svg(
     width = max(cols * panel_w + 10, _LEGEND_W)
     legend_y = ((len(panels) + cols - 1) // cols) * panel_h + 8
     slice_lines = textwrap.wrap(
-        f"other dimensions held at {held.origin}: {_slice_text(held.values)}",
+        f"other dimensions held at {held.origin}"
+        + (" (ringed; a faded point lies far from it in them)" if held.point_id else "")
+        + f": {_slice_text(held.values)}",
         width=max(30, int((width - 20) / _SMALL_CHAR_W)),
     )
     height = legend_y + 30 + 14 * len(slice_lines) + (_UNSURE_ROW if sds is not None else 0)
@@ -251,7 +310,7 @@ def render_heatmap_svg(
             out.append(_unsure_overlay(ox, oy, cell_w, cell_h, n, sd_chunk))
         if dx is not None:
             out.append(_axes(ox, oy, w, h, dx, dy))
-            out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed))
+            out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed, space, held))
         else:
             n_bad = mine.count(False)
             out.append(
@@ -389,30 +448,56 @@ def _observed_marks(
     dy: Dim | None,
     panel: dict[str, str],
     observed: Sequence[tuple[dict[str, Value], bool]],
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    held: Slice,
 ) -> str:
+    """The stored points of this panel, each faded by its distance from the slice in the
+    dimensions off the axes, and a ring where the held point lies."""
+    shown = {dx.name} | ({dy.name} if dy is not None else set())
+
+    def at(x: dict[str, Value]) -> tuple[float, float] | None:
+        vx = x.get(dx.label)
+        if not isinstance(vx, list) or len(vx) <= dx.index:
+            return None
+        px = ox + (vx[dx.index] - dx.low) / ((dx.high - dx.low) or 1.0) * w
+        if dy is None:
+            return px, oy + h / 2.0
+        vy = x.get(dy.label)
+        if not isinstance(vy, list) or len(vy) <= dy.index:
+            return None
+        return px, oy + (dy.high - vy[dy.index]) / ((dy.high - dy.low) or 1.0) * h
+
     marks: list[str] = []
     for x, feasible in observed:
         if any(x.get(lab) != choice for lab, choice in panel.items()):
             continue
-        vx = x.get(dx.label)
-        if not isinstance(vx, list) or len(vx) <= dx.index:
+        spot = at(x)
+        if spot is None:
             continue
-        px = ox + (vx[dx.index] - dx.low) / (dx.high - dx.low) * w
-        py = oy + h / 2.0
-        if dy is not None:
-            vy = x.get(dy.label)
-            if not isinstance(vy, list) or len(vy) <= dy.index:
-                continue
-            py = oy + (dy.high - vy[dy.index]) / (dy.high - dy.low) * h
+        px, py = spot
+        near = closeness(space, x, held, shown, with_choices=False)
+        fade = f'data-closeness="{near:.2f}" opacity="{opacity(near):.2f}"'
         if feasible:
             marks.append(
-                f'<circle class="cp-observed" data-feasible="1" cx="{px:.1f}" cy="{py:.1f}" '
-                'r="3.2" fill="#ffffff" stroke="#111827" stroke-width="1.2"/>'
+                f'<circle class="cp-observed" data-feasible="1" {fade} cx="{px:.1f}" '
+                f'cy="{py:.1f}" r="3.2" fill="#ffffff" stroke="#111827" stroke-width="1.2"/>'
             )
         else:
             cross = _cross(px, py, 3.2)
             marks.append(
-                f'<g class="cp-observed" data-feasible="0"><path d="{cross}" stroke="#ffffff" '
-                f'stroke-width="3.2"/><path d="{cross}" stroke="#111827" stroke-width="1.6"/></g>'
+                f'<g class="cp-observed" data-feasible="0" {fade}><path d="{cross}" '
+                f'stroke="#ffffff" stroke-width="3.2"/><path d="{cross}" stroke="#111827" '
+                'stroke-width="1.6"/></g>'
+            )
+    if held.point_id is not None and all(held.choices.get(k) == v for k, v in panel.items()):
+        spot = at({**held.values, **held.choices})
+        if spot is not None:
+            marks.append(
+                f'<circle class="cp-held" data-point-id="{held.point_id}" cx="{spot[0]:.1f}" '
+                f'cy="{spot[1]:.1f}" r="7" fill="none" stroke="{HELD_COLOUR}" stroke-width="2.2">'
+                f"<title>the held point #{held.point_id}</title></circle>"
             )
     return "".join(marks)
+
+
+HELD_COLOUR = "#d55e00"  # Okabe-Ito vermillion: apart from cividis' blues and yellows

@@ -40,12 +40,14 @@ PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
 def table_query(
     feasible: Annotated[Literal["", "true", "false"], Query(description="'' for both labels")] = "",
     task: Annotated[str, Query(max_length=128, description="'' for every task")] = "",
+    run: Annotated[str, Query(max_length=128, description="'' for every run")] = "",
     order: Literal["newest", "oldest"] = "newest",
     after: PointId = None,
     before: PointId = None,
     limit: Annotated[int, Query(ge=1, le=500)] = views.POINTS_PER_PAGE,
     x: DimName = None,
     y: DimName = None,
+    hold: Annotated[PointId, Query(description="the point the pictures go through")] = None,
 ) -> views.TableQuery:
     """The points table's query string: unknown values are a 422, never silently ignored."""
     if after is not None and before is not None:
@@ -53,11 +55,13 @@ def table_query(
     return views.TableQuery(
         feasible=None if feasible == "" else feasible == "true",
         task=task or None,
+        run=run or None,
         newest_first=order == "newest",
         after=after,
         before=before,
         limit=limit,
         axes=(x, y),
+        hold=hold,
     )
 
 
@@ -137,7 +141,7 @@ def type_page(
     data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
-    inputs = _inputs(request, kb, type_id)
+    inputs = _inputs(request, kb, type_id, table.hold)
     heatmap = Markup(figures.heatmap(inputs, data["x_dim"], data["y_dim"], 20))
     slices = Markup(figures.slices(inputs))
     history = Markup(figures.type_history(store, kb, type_id))
@@ -147,6 +151,7 @@ def type_page(
         "heatmap_svg": heatmap,
         "slices_svg": slices,
         "history_svg": history,
+        "held": inputs.held,
         "figure_key": _figure_key(data),
         "fragments": _fragments("_type.html", **data),
     }
@@ -162,6 +167,17 @@ def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResp
     return JSONResponse({**data, "figure_key": _figure_key(data), "fragments": fragments})
 
 
+@router.get("/ui/kbs/{kb}/points/{point_id}", response_class=HTMLResponse)
+def point_page(request: Request, kb: str, point_id: int) -> Response:
+    """A page per point: its values and provenance, the model's verdict at it, and a link to
+    its type's pictures drawn through it."""
+    store, hooks = _state(request)
+    state = request.app.state
+    judge = getattr(state, "predict_with_uncertainty", None)
+    data = views.point_page(store, hooks, kb, point_id, judge)
+    return templates.TemplateResponse(request, "point.html", data)
+
+
 @router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
 def graph_svg(request: Request, kb: str, type_id: str) -> Response:
     store, _ = _state(request)
@@ -170,14 +186,21 @@ def graph_svg(request: Request, kb: str, type_id: str) -> Response:
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/heatmap.svg")
 def heatmap_svg(
-    request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
+    request: Request,
+    kb: str,
+    type_id: str,
+    x: DimName = None,
+    y: DimName = None,
+    n: GridSize = 20,
+    hold: PointId = None,
 ) -> Response:
-    return Response(figures.heatmap(_inputs(request, kb, type_id), x, y, n), media_type=SVG)
+    inputs = _inputs(request, kb, type_id, hold)
+    return Response(figures.heatmap(inputs, x, y, n), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
-def slices_svg(request: Request, kb: str, type_id: str) -> Response:
-    return Response(figures.slices(_inputs(request, kb, type_id)), media_type=SVG)
+def slices_svg(request: Request, kb: str, type_id: str, hold: PointId = None) -> Response:
+    return Response(figures.slices(_inputs(request, kb, type_id, hold)), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
@@ -215,12 +238,12 @@ def static(name: str) -> Response:
     )
 
 
-def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
+def _inputs(request: Request, kb: str, type_id: str, hold: int | None = None) -> figures.Inputs:
     store, hooks = _state(request)
     state = request.app.state
     predict = getattr(state, "predict", None)
     judge = getattr(state, "predict_with_uncertainty", None) if predict is not None else None
-    return figures.inputs(store, hooks, predict, kb, type_id, judge)
+    return figures.inputs(store, hooks, predict, kb, type_id, judge, hold)
 
 
 def _figure_key(data: dict[str, Any]) -> str:

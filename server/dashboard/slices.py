@@ -2,7 +2,8 @@
 
 A continuous dimension's panel draws the surrogate's P(feasible) along that dimension, every
 other decision held at the heat map's slice, with the stored points at their value (feasible
-along the top, infeasible along the bottom), as optuna's slice plot does for an objective.
+along the top, infeasible along the bottom, each faded by its distance from the held point in
+the other decisions), as optuna's slice plot does for an objective.
 Its title names the fit's lengthscale and a bar for its relevance (1 / lengthscale, scaled to
 the most relevant dimension): which decisions matter, at a glance. A categorical decision's
 panel shows each choice's stored feasible share and count.
@@ -16,7 +17,17 @@ from collections.abc import Sequence
 from html import escape
 
 from client.models import CategoricalDomain, ContinuousDomain
-from server.dashboard.heatmap import FONT, Dim, Predict, Slice, Value, continuous_dims
+from server.dashboard.heatmap import (
+    FONT,
+    HELD_COLOUR,
+    Dim,
+    Predict,
+    Slice,
+    Value,
+    closeness,
+    continuous_dims,
+    opacity,
+)
 
 _W = 230.0
 _H = 80.0
@@ -29,19 +40,7 @@ _INK = "#111827"
 _MUTED = "#6b7280"
 _CURVE = "#0072b2"  # Okabe-Ito blue
 _BAR = "#e69f00"  # Okabe-Ito orange
-
-
-def held_choices(
-    space: dict[str, CategoricalDomain | ContinuousDomain],
-    observed: Sequence[tuple[dict[str, Value], bool]],
-) -> dict[str, str]:
-    """The categorical choices the slices hold: the latest infeasible point's (as the
-    continuous slice is), else each decision's first choice."""
-    cats = {lab: d for lab, d in space.items() if isinstance(d, CategoricalDomain)}
-    for x, feasible in reversed(observed):
-        if not feasible and all(x.get(lab) in d.choices for lab, d in cats.items()):
-            return {lab: str(x[lab]) for lab in cats}
-    return {lab: d.choices[0] for lab, d in cats.items()}
+_BAD = "#cc79a7"  # Okabe-Ito reddish purple: an infeasible point, seen on light and dark pages
 
 
 def _order(dims: list[Dim], relevance: dict[str, float]) -> list[Dim]:
@@ -57,7 +56,7 @@ def render_slices_svg(
 ) -> str:
     """All panels in rows of three, one predict call for every curve."""
     dims = _order(continuous_dims(space), relevance)
-    choices = held_choices(space, observed)
+    choices = held.choices
     queries: list[dict[str, Value]] = []
     for dim in dims:
         for k in range(_STEPS + 1):
@@ -80,12 +79,19 @@ def render_slices_svg(
     for k, dim in enumerate(dims):
         ox, oy = (k % cols) * cell_w + _PAD_L, (k // cols) * cell_h + _PAD_T
         curve = probs[k * (_STEPS + 1) : (k + 1) * (_STEPS + 1)]
-        out.append(_continuous_panel(ox, oy, dim, curve, observed, relevance.get(dim.name), top))
+        fades = [closeness(space, x, held, {dim.name}, with_choices=True) for x, _ in observed]
+        out.append(
+            _continuous_panel(
+                ox, oy, dim, curve, observed, fades, held, relevance.get(dim.name), top
+            )
+        )
     for j, (label, domain) in enumerate(cats):
         k = len(dims) + j
         ox, oy = (k % cols) * cell_w + _PAD_L, (k // cols) * cell_h + _PAD_T
         out.append(_choice_panel(ox, oy, label, domain, observed))
     note = "other decisions held at " + held.origin
+    if held.point_id is not None:
+        note += " (dashed; a faded point lies far from it in them)"
     if choices:
         note += " (" + ", ".join(f"{lab}={c}" for lab, c in choices.items()) + ")"
     if predict is None:
@@ -133,6 +139,8 @@ def _continuous_panel(
     dim: Dim,
     curve: list[float],
     observed: Sequence[tuple[dict[str, Value], bool]],
+    fades: Sequence[float],
+    held: Slice,
     ell: float | None,
     top: float | None,
 ) -> str:
@@ -151,6 +159,14 @@ def _continuous_panel(
             'stroke-width="1.8"/>'
         )
     span = dim.high - dim.low or 1.0
+    if held.point_id is not None:
+        hx = ox + _W * (held.values[dim.label][dim.index] - dim.low) / span
+        parts.append(
+            f'<line class="cp-held" data-point-id="{held.point_id}" x1="{hx:.1f}" '
+            f'y1="{oy:.1f}" x2="{hx:.1f}" y2="{oy + _H:.1f}" stroke="{HELD_COLOUR}" '
+            f'stroke-width="1.5" stroke-dasharray="3 2"><title>the held point '
+            f"#{held.point_id}</title></line>"
+        )
     for n, (x, feasible) in enumerate(observed):
         v = x.get(dim.label)
         if not isinstance(v, list) or len(v) <= dim.index:
@@ -160,8 +176,9 @@ def _continuous_panel(
         py = oy + (4 + jitter / 2 if feasible else _H - 4 + jitter / 2)
         parts.append(
             f'<circle class="cp-slice-point" data-feasible="{int(feasible)}" cx="{px:.1f}" '
-            f'cy="{py:.1f}" r="2.2" fill="{"#ffffff" if feasible else _INK}" '
-            f'stroke="{_INK}" stroke-width="0.8" fill-opacity="0.8"/>'
+            f'cy="{py:.1f}" r="2.2" fill="{"#ffffff" if feasible else _BAD}" '
+            f'stroke="{_INK}" stroke-width="0.8" data-closeness="{fades[n]:.2f}" '
+            f'opacity="{opacity(fades[n]):.2f}"/>'
         )
     parts.append("</g>")
     return "".join(parts)

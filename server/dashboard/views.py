@@ -18,7 +18,7 @@ from server.dashboard.heatmap import Dim, continuous_dims
 from server.db import Store
 from server.hooks import ServiceHooks
 from server.services import activity, browse, kbs, types
-from server.services.types import load_training_points
+from server.services.points import PointFilter
 from surrogate.domains import space_from_json
 from surrogate.encoding import SpaceEncoder
 
@@ -120,11 +120,13 @@ class TableQuery:
 
     feasible: bool | None = None
     task: str | None = None
+    run: str | None = None
     newest_first: bool = True
     after: int | None = None
     before: int | None = None
     limit: int = POINTS_PER_PAGE
     axes: tuple[str | None, str | None] = (None, None)
+    hold: int | None = None  # the point the pictures are drawn through (None: newest feasible)
 
     def params(self, **page: int) -> dict[str, str | int]:
         """The query string of this view with another page (`after=` or `before=`)."""
@@ -133,15 +135,26 @@ class TableQuery:
             out["feasible"] = "true" if self.feasible else "false"
         if self.task is not None:
             out["task"] = self.task
+        if self.run is not None:
+            out["run"] = self.run
         out["order"] = "newest" if self.newest_first else "oldest"
         out["limit"] = self.limit
         for name, value in zip(("x", "y"), self.axes, strict=True):
             if value is not None:
                 out[name] = value
+        if self.hold is not None:
+            out["hold"] = self.hold
         return {**out, **page}
 
     def href(self, **page: int) -> str:
         return "?" + urlencode(self.params(**page))
+
+    def holding(self, point_id: int | None) -> str:
+        """This view (its first page) drawn through another point; None: the default one."""
+        params = {k: v for k, v in self.params().items() if k != "hold"}
+        if point_id is not None:
+            params["hold"] = point_id
+        return "?" + urlencode(params)
 
 
 def points_table(store: Store, kb: str, type_id: str, query: TableQuery) -> dict[str, Any]:
@@ -153,7 +166,7 @@ def points_table(store: Store, kb: str, type_id: str, query: TableQuery) -> dict
         after=query.after,
         before=query.before,
         newest_first=query.newest_first,
-        where=browse.PointFilter(query.feasible, query.task),
+        where=PointFilter(query.feasible, query.task, query.run),
     )
     paged = query.after is not None or query.before is not None
     return {
@@ -176,6 +189,14 @@ def type_status(
     shown = points_table(store, kb, type_id, table)
     # A page at the start polls as the first page, so that new points join it.
     page = _page(table) if shown["prev_href"] else {}
+    held_id = table.hold
+    if held_id is None:
+        newest = browse.browse_points(
+            store, kb, type_id, limit=1, newest_first=True, where=PointFilter(feasible=True)
+        ).points
+        if not newest:  # no feasible point: the pictures go through the newest one
+            newest = browse.browse_points(store, kb, type_id, limit=1, newest_first=True).points
+        held_id = newest[0].point_id if newest else None
     return {
         "kb": kb,
         "type_id": type_id,
@@ -188,6 +209,7 @@ def type_status(
         "surrogate": surrogate_state(hooks, kb, type_id),
         "space": {label: dom.model_dump(mode="json") for label, dom in detail.space.items()},
         "table": shown,
+        "held_id": held_id,
         "poll": f"/ui/api/kbs/{quote(kb, safe='')}/types/{type_id}" + table.href(**page),
     }
 
@@ -258,8 +280,30 @@ def type_page(
     }
 
 
-def observed_points(store: Store, kb: str, type_id: str) -> list[tuple[dict[str, Any], bool]]:
-    """The type's latest points (at most MAX_OVERLAY_POINTS) with their labels."""
-    data = load_training_points(store, kb, type_id)
-    pairs = list(zip(data.x, data.feasible, strict=True))
-    return pairs[-MAX_OVERLAY_POINTS:]
+def observed_points(
+    store: Store, kb: str, type_id: str
+) -> tuple[list[int], list[tuple[dict[str, Any], bool]]]:
+    """The type's newest points (at most MAX_OVERLAY_POINTS), oldest first: their ids, and
+    their decision values with their labels."""
+    rows = browse.newest_points(store, kb, type_id, MAX_OVERLAY_POINTS)
+    return [pid for pid, _, _ in rows], [(x, ok) for _, x, ok in rows]
+
+
+def point_page(
+    store: Store, hooks: ServiceHooks, kb: str, point_id: int, judge: Any | None
+) -> dict[str, Any]:
+    """One stored point: its type, label, decision values, provenance, and what the type's
+    model now says at it (P(feasible) and its uncertainty; None without a model)."""
+    point = browse.point_in_kb(store, kb, point_id)
+    detail = types.get_type(store, kb, point.type_id)
+    verdict = None
+    if judge is not None and hooks.surrogate(kb, point.type_id) is not None:
+        p, sd = judge(kb, point.type_id, [point.x])
+        verdict = {"p": float(p[0]), "sd": float(sd[0])}
+    return {
+        "kb": kb,
+        "point": point.model_dump(mode="json"),
+        "detail": detail,
+        "type_href": f"/ui/kbs/{quote(kb, safe='')}/types/{point.type_id}?hold={point_id}",
+        "verdict": verdict,
+    }

@@ -7,11 +7,13 @@ from __future__ import annotations
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 from sqlalchemy import func, select
 
 from client.models import PointOut, TypeSummary
 from server.db import Store
+from server.errors import NotFound
 from server.orm import PointRow, TypeRow
 from server.services.kbs import kb_id
 from server.services.points import PointFilter, point_out
@@ -71,6 +73,47 @@ def browse_points(
         before=prev_before,
         n_matching=int(n_matching or 0),
     )
+
+
+def one_point(store: Store, kb: str, type_id: str, point_id: int) -> PointOut:
+    """A point of this type by its id (NotFound when the type has no such point)."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        row = session.scalar(
+            select(PointRow).where(PointRow.id == point_id, PointRow.type_pk == type_pk)
+        )
+        if row is None:
+            raise NotFound(f"type {type_id} has no point #{point_id}")
+        return point_out(row, type_id)
+
+
+def point_in_kb(store: Store, kb: str, point_id: int) -> PointOut:
+    """A point of the knowledge base by its id, whatever its type (NotFound if none)."""
+    with store.transaction() as session:
+        kb_pk = kb_id(session, kb)
+        found = session.execute(
+            select(PointRow, TypeRow.type_id)
+            .join(TypeRow, TypeRow.id == PointRow.type_pk)
+            .where(PointRow.id == point_id, PointRow.kb_id == kb_pk)
+        ).first()
+        if found is None:
+            raise NotFound(f"knowledge base {kb!r} has no point #{point_id}")
+        return point_out(found[0], found[1])
+
+
+def newest_points(
+    store: Store, kb: str, type_id: str, limit: int
+) -> list[tuple[int, dict[str, Any], bool]]:
+    """The type's newest `limit` points as (id, decision values, label), oldest first."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        rows = session.execute(
+            select(PointRow.id, PointRow.x, PointRow.feasible)
+            .where(PointRow.type_pk == type_pk)
+            .order_by(PointRow.id.desc())
+            .limit(limit)
+        ).all()
+    return [(int(pid), x, bool(ok)) for pid, x, ok in reversed(rows)]
 
 
 @dataclass(frozen=True)

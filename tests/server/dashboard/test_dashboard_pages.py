@@ -51,7 +51,10 @@ def _rows(html: str, tbody_id: str) -> list[str]:
 
 
 def _point_ids(html: str) -> list[int]:
-    return [int(i) for i in re.findall(r'<tr class="(?:in)?feasible" data-point-id="(\d+)">', html)]
+    return [
+        int(i)
+        for i in re.findall(r'<tr class="(?:in)?feasible(?: held)?" data-point-id="(\d+)">', html)
+    ]
 
 
 def _link(html: str, link_id: str) -> str | None:
