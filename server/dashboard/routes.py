@@ -137,8 +137,7 @@ def type_page(
     table: Table,
 ) -> Response:
     store, hooks = _state(request)
-    x, y = table.axes
-    data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
+    data = views.type_page(store, hooks, kb, type_id, table=table)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
     inputs = _inputs(request, kb, type_id, table.hold)

@@ -187,6 +187,13 @@ def type_status(
     detail: TypeDetail = types.get_type(store, kb, type_id)
     table = table or TableQuery()
     shown = points_table(store, kb, type_id, table)
+    surrogate = surrogate_state(hooks, kb, type_id)
+    lengthscales = (surrogate or {}).get("lengthscales")
+    relevance = dim_lengthscales(detail.space, lengthscales)
+    dims = continuous_dims(detail.space)
+    dx, dy = choose_dims(dims, *table.axes, relevance)
+    columns, mismatch = fit_columns(detail.space, lengthscales)
+    accuracy = (surrogate or {}).get("train_accuracy")
     # A page at the start polls as the first page, so that new points join it.
     page = _page(table) if shown["prev_href"] else {}
     held_id = table.hold
@@ -206,7 +213,14 @@ def type_status(
         "updated_at": detail.updated_at.isoformat() if detail.updated_at else None,
         "updated_ago": ago(detail.updated_at),
         "provenance": asdict(activity.type_provenance(store, kb, type_id)),
-        "surrogate": surrogate_state(hooks, kb, type_id),
+        "surrogate": surrogate,
+        "dims": [d.name for d in dims],
+        "x_dim": dx.name if dx else None,
+        "y_dim": dy.name if dy else None,
+        "axes_chosen": any(a is not None for a in table.axes),
+        "columns": columns,
+        "columns_mismatch": mismatch,
+        "train_accuracy": accuracy,
         "space": {label: dom.model_dump(mode="json") for label, dom in detail.space.items()},
         "table": shown,
         "held_id": held_id,
@@ -256,28 +270,29 @@ def choose_dims(
 
 
 def type_page(
-    store: Store,
-    hooks: ServiceHooks,
-    kb: str,
-    type_id: str,
-    *,
-    x: str | None,
-    y: str | None,
-    table: TableQuery,
+    store: Store, hooks: ServiceHooks, kb: str, type_id: str, *, table: TableQuery
 ) -> dict[str, Any]:
-    detail = types.get_type(store, kb, type_id)
-    dims = continuous_dims(detail.space)
-    status = type_status(store, hooks, kb, type_id, table)
-    relevance = dim_lengthscales(detail.space, (status["surrogate"] or {}).get("lengthscales"))
-    dx, dy = choose_dims(dims, x, y, relevance)
     return {
-        **status,
-        "relevance": sorted(relevance.items(), key=lambda kv: kv[1]),
-        "detail": detail,
-        "dims": [d.name for d in dims],
-        "x_dim": dx.name if dx else None,
-        "y_dim": dy.name if dy else None,
+        **type_status(store, hooks, kb, type_id, table),
+        "detail": types.get_type(store, kb, type_id),
     }
+
+
+def fit_columns(
+    space: dict[str, Any], lengthscales: list[float] | None
+) -> tuple[list[tuple[str, float]], str | None]:
+    """Every lengthscale of the fit named by its column of the encoding (choices and
+    separations included), shortest first; and why they cannot be named, if so."""
+    if not lengthscales:
+        return [], None
+    encoder = SpaceEncoder(space_from_json({k: d.model_dump() for k, d in space.items()}))
+    names = encoder.column_names()
+    if len(names) != len(lengthscales):
+        return [], (
+            f"the fit has {len(lengthscales)} lengthscales and this type's encoding "
+            f"{len(names)} columns, so they cannot be named"
+        )
+    return sorted(zip(names, map(float, lengthscales), strict=True), key=lambda kv: kv[1]), None
 
 
 def observed_points(

@@ -55,9 +55,15 @@
       });
       if (!response.ok) throw new Error("HTTP " + response.status);
       const data = await response.json();
+      // A fragment the user is working in (a select open, a field typed in) waits for the
+      // next poll; one that did not change is left alone.
       for (const [id, html] of Object.entries(data.fragments || {})) {
         const element = document.getElementById(id);
-        if (element) element.innerHTML = html;
+        if (!element || element.contains(document.activeElement)) continue;
+        if (element.dataset.html !== html) {
+          element.innerHTML = html;
+          element.dataset.html = html;
+        }
       }
       await refreshFigures(data.figure_key);
       setLive("live · " + new Date().toLocaleTimeString(), true);

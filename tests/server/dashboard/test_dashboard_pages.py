@@ -226,6 +226,8 @@ def test_type_json_follows_new_points(stocked: dict[str, Any]) -> None:
         "stats-panel",
         "provenance-panel",
         "surrogate-panel",
+        "dims-panel",
+        "relevance-panel",
         "points-panel",
     }
     _post(client, "default", [make_point(7, graph=make_graph("Plan-motion", ("shelf",)))])
