@@ -91,20 +91,21 @@ def inputs(
     )
 
 
-def heatmap(f: Inputs, x: str | None, y: str | None, n: int) -> str:
+def heatmap(f: Inputs, x: str | None, y: str | None, n: int, cols: int | None = None) -> str:
     dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
     return render_heatmap_svg(
-        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, judge=f.judge
+        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, judge=f.judge, cols=cols
     )
 
 
-def slices(f: Inputs) -> str:
-    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance)
+def slices(f: Inputs, cols: int | None = None) -> str:
+    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance, cols)
 
 
-def type_history(store: Store, kb: str, type_id: str) -> str:
-    return render_history_svg(browse.history(store, kb, type_id), "task")
+def type_history(store: Store, kb: str, type_id: str, axis: str = "time", cols: int = 2) -> str:
+    history = browse.history(store, kb, type_id, axis=axis)
+    return render_history_svg(history, "task", narrow=cols < 2)
 
 
-def kb_history(store: Store, kb: str) -> str:
-    return render_history_svg(browse.history(store, kb), "type")
+def kb_history(store: Store, kb: str, axis: str = "time", cols: int = 2) -> str:
+    return render_history_svg(browse.history(store, kb, axis=axis), "type", narrow=cols < 2)

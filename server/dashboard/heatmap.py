@@ -243,8 +243,10 @@ def render_heatmap_svg(
     n: int = 20,
     held: Slice | None = None,
     judge: Judge | None = None,
+    cols: int | None = None,
 ) -> str:
-    """Panels side by side (wrapping after four), one predict call for all of them. With no
+    """Panels side by side (wrapping after `cols`, by default four: one on a phone, so that
+    they stack rather than shrink), one predict call for all of them. With no
     `predict` (no surrogate yet) the cells are grey and only the stored points show. A panel
     without points is faded and says so: its colours are the model's extrapolation. A `judge`
     answers instead of `predict` with the model's uncertainty too: its unsure cells are hatched."""
@@ -267,8 +269,9 @@ def render_heatmap_svg(
     cell_w, cell_h = w / n, h / rows
     panel_w = _PAD_LEFT + w + _PANEL_GAP
     panel_h = _PAD_TOP + h + (_PAD_BOTTOM if dx is not None else _COUNT_PX)
-    cols = min(len(panels), 4 if dx is not None else 6)
-    width = max(cols * panel_w + 10, _LEGEND_W)
+    cols = max(1, min(len(panels), cols or (4 if dx is not None else 6)))
+    narrow = cols * panel_w + 10 < _LEGEND_W
+    width = cols * panel_w + 10 if narrow else max(cols * panel_w + 10, _LEGEND_W)
     legend_y = ((len(panels) + cols - 1) // cols) * panel_h + 8
     slice_lines = textwrap.wrap(
         f"other dimensions held at {held.origin}"
@@ -276,7 +279,7 @@ def render_heatmap_svg(
         + f": {_slice_text(held.values)}",
         width=max(30, int((width - 20) / _SMALL_CHAR_W)),
     )
-    height = legend_y + 30 + 14 * len(slice_lines) + (_UNSURE_ROW if sds is not None else 0)
+    height = legend_y + 30 + 14 * len(slice_lines) + _legend_extra(sds is not None, narrow)
     out = [
         f'<svg class="cp-heatmap" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
@@ -318,7 +321,7 @@ def render_heatmap_svg(
                 f'fill="#111827">{len(mine) - n_bad} ✓ · {n_bad} ✗</text>'
             )
         out.append("</g>")
-    out.append(_legend(legend_y, slice_lines, sds is not None))
+    out.append(_legend(legend_y, slice_lines, sds is not None, narrow))
     out.append("</svg>")
     return "".join(out)
 
@@ -372,7 +375,18 @@ def _unsure_overlay(
     return "".join(runs)
 
 
-def _legend(y: float, slice_lines: list[str], with_unsure: bool) -> str:
+def _legend_extra(with_unsure: bool, narrow: bool) -> float:
+    """The legend's height beyond its scale row: the unsure row, and on a narrow picture the
+    markers' own row and the unsure text's second line."""
+    extra = _UNSURE_ROW if with_unsure else 0.0
+    if narrow:
+        extra += _UNSURE_ROW + (14.0 if with_unsure else 0.0)
+    return extra
+
+
+def _legend(y: float, slice_lines: list[str], with_unsure: bool, narrow: bool = False) -> str:
+    """The scale, the markers (beside it, or below it on a narrow picture), the unsure hatch
+    and the slice, each row below the last."""
     swatches = "".join(
         f'<rect x="{96 + 12 * k}" y="{y}" width="12" height="10" fill="{_colour(k / 10)}"/>'
         for k in range(11)
@@ -382,27 +396,38 @@ def _legend(y: float, slice_lines: list[str], with_unsure: bool) -> str:
         f'<tspan x="10" dy="{0 if k == 0 else 14}">{escape(line)}</tspan>'
         for k, line in enumerate(slice_lines)
     )
+    marks_y, marks_x = (y + _UNSURE_ROW, 14.0) if narrow else (y, 250.0)
     unsure = ""
+    below = marks_y
     if with_unsure:
-        row = y + _UNSURE_ROW
+        row = marks_y + _UNSURE_ROW
+        sd_note = f"(latent sd over {UNSURE_SD:.0%} of the prior's)"
+        text = (
+            f'<tspan x="40" dy="0">unsure: little data nearby</tspan>'
+            f'<tspan x="40" dy="14">{sd_note}</tspan>'
+            if narrow
+            else f"unsure: little data nearby {sd_note}"
+        )
         # The hatch over a mid-scale swatch, as it shows over the map.
         unsure = (
             f'<g class="cp-legend-unsure"><rect x="10" y="{row}" width="24" height="10" '
             f'fill="{_colour(0.5)}"/><rect x="10" y="{row}" width="24" height="10" '
             f'fill="url(#{HATCH_ID})" stroke="#374151" stroke-width="0.5"/>'
-            f'<text x="40" y="{row + 9}">unsure: little data nearby '
-            f"(latent sd over {UNSURE_SD:.0%} of the prior's)</text></g>"
+            f'<text x="40" y="{row + 9}">{text}</text></g>'
         )
-    slice_y = y + 28 + (_UNSURE_ROW if with_unsure else 0)
+        below = row + (14 if narrow else 0)
+    slice_y = below + 28
+    cross_x = marks_x + 100
     return (
         f'<g class="cp-legend" font-size="11" fill="#374151">'
         f'<text x="10" y="{y + 9}">P(feasible): 0</text>{swatches}'
         f'<text x="{96 + 12 * 11 + 4}" y="{y + 9}">1</text>'
-        f'<circle cx="{250}" cy="{y + 5}" r="3.5" fill="#ffffff" stroke="#111827"/>'
-        f'<text x="{258}" y="{y + 9}">feasible point</text>'
-        f'<path d="{_cross(350, y + 5)}" stroke="#ffffff" stroke-width="3.2"/>'
-        f'<path d="{_cross(350, y + 5)}" stroke="#111827" stroke-width="1.6"/>'
-        f'<text x="{358}" y="{y + 9}">infeasible point</text>'
+        f'<circle cx="{marks_x}" cy="{marks_y + 5}" r="3.5" fill="#ffffff" stroke="#111827"/>'
+        f'<text x="{marks_x + 8}" y="{marks_y + 9}">feasible point</text>'
+        f'<path class="cp-legend-cross" d="{_cross(cross_x, marks_y + 5)}" stroke="#ffffff" '
+        'stroke-width="3.2"/>'
+        f'<path d="{_cross(cross_x, marks_y + 5)}" stroke="#111827" stroke-width="1.6"/>'
+        f'<text x="{cross_x + 8}" y="{marks_y + 9}">infeasible point</text>'
         f'{unsure}<text class="cp-slice" x="10" y="{slice_y}">{lines}</text></g>'
     )
 

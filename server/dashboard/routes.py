@@ -33,6 +33,8 @@ router = APIRouter(include_in_schema=False)
 
 DimName = Annotated[str | None, Query(max_length=200)]
 GridSize = Annotated[int, Query(ge=4, le=40)]
+# Panels a row: the page asks for as many as its width holds, so that a phone stacks them.
+Cols = Annotated[int | None, Query(ge=1, le=12)]
 KbName = Annotated[str | None, Query(max_length=64)]
 PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
 
@@ -192,26 +194,37 @@ def heatmap_svg(
     y: DimName = None,
     n: GridSize = 20,
     hold: PointId = None,
+    cols: Cols = None,
 ) -> Response:
     inputs = _inputs(request, kb, type_id, hold)
-    return Response(figures.heatmap(inputs, x, y, n), media_type=SVG)
+    return Response(figures.heatmap(inputs, x, y, n, cols), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
-def slices_svg(request: Request, kb: str, type_id: str, hold: PointId = None) -> Response:
-    return Response(figures.slices(_inputs(request, kb, type_id, hold)), media_type=SVG)
+def slices_svg(
+    request: Request, kb: str, type_id: str, hold: PointId = None, cols: Cols = None
+) -> Response:
+    return Response(figures.slices(_inputs(request, kb, type_id, hold), cols), media_type=SVG)
+
+
+HistoryAxis = Annotated[
+    Literal["time", "point", "run"],
+    Query(description="time (idle pauses left out), point (storage order) or run"),
+]
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
-def type_history_svg(request: Request, kb: str, type_id: str) -> Response:
+def type_history_svg(
+    request: Request, kb: str, type_id: str, axis: HistoryAxis = "time"
+) -> Response:
     store, _ = _state(request)
-    return Response(figures.type_history(store, kb, type_id), media_type=SVG)
+    return Response(figures.type_history(store, kb, type_id, axis), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/history.svg")
-def kb_history_svg(request: Request, kb: str) -> Response:
+def kb_history_svg(request: Request, kb: str, axis: HistoryAxis = "time") -> Response:
     store, _ = _state(request)
-    return Response(figures.kb_history(store, kb), media_type=SVG)
+    return Response(figures.kb_history(store, kb, axis), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/export.zip")

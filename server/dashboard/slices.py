@@ -12,6 +12,7 @@ panel shows each choice's stored feasible share and count.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections import Counter
 from collections.abc import Sequence
 from html import escape
@@ -53,8 +54,10 @@ def render_slices_svg(
     observed: Sequence[tuple[dict[str, Value], bool]],
     held: Slice,
     relevance: dict[str, float],
+    cols: int | None = None,
 ) -> str:
-    """All panels in rows of three, one predict call for every curve."""
+    """All panels in rows of `cols` (three by default; one on a phone, so that they stack
+    rather than shrink), one predict call for every curve."""
     dims = _order(continuous_dims(space), relevance)
     choices = held.choices
     queries: list[dict[str, Value]] = []
@@ -66,16 +69,12 @@ def render_slices_svg(
     probs = predict(queries) if predict is not None and queries else []
     cats = [(lab, d) for lab, d in space.items() if isinstance(d, CategoricalDomain)]
     n_panels = len(dims) + len(cats)
-    cols = max(1, min(3, n_panels))
+    cols = max(1, min(cols or 3, n_panels))
     rows = max(1, math.ceil(n_panels / cols))
     cell_w, cell_h = _PAD_L + _W + _GAP, _PAD_T + _H + _PAD_B
-    width, height = cols * cell_w, rows * cell_h + 22
+    width = cols * cell_w
     top = min(relevance.values()) if relevance else None
-    out = [
-        f'<svg class="cp-slices" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
-        f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
-        f'aria-label="slices of P(feasible), one per decision" font-family="{FONT}">'
-    ]
+    out = [""]  # the opening tag, once the note's height is known
     for k, dim in enumerate(dims):
         ox, oy = (k % cols) * cell_w + _PAD_L, (k // cols) * cell_h + _PAD_T
         curve = probs[k * (_STEPS + 1) : (k + 1) * (_STEPS + 1)]
@@ -96,9 +95,21 @@ def render_slices_svg(
         note += " (" + ", ".join(f"{lab}={c}" for lab, c in choices.items()) + ")"
     if predict is None:
         note += "; no surrogate yet: stored points only"
+    # Wrapped to the picture's width (about 6 px a character at 11 px).
+    lines = textwrap.wrap(note, width=max(30, int((width - 12) / 6.2)))
+    height = rows * cell_h + 8 + 14 * len(lines)
+    tspans = "".join(
+        f'<tspan x="6" dy="{0 if k == 0 else 14}">{escape(line)}</tspan>'
+        for k, line in enumerate(lines)
+    )
     out.append(
-        f'<text class="cp-slice-note" x="6" y="{height - 8:.0f}" font-size="11" '
-        f'fill="{_MUTED}">{escape(note)}</text></svg>'
+        f'<text class="cp-slice-note" x="6" y="{rows * cell_h + 6:.0f}" font-size="11" '
+        f'fill="{_MUTED}">{tspans}</text></svg>'
+    )
+    out[0] = (
+        f'<svg class="cp-slices" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
+        f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
+        f'aria-label="slices of P(feasible), one per decision" font-family="{FONT}">'
     )
     return "".join(out)
 

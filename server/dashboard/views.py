@@ -47,11 +47,15 @@ def feasible_ratio(summary: TypeSummary) -> float | None:
 
 
 def pick_kb(store: Store, requested: str | None) -> tuple[list[Any], str | None]:
-    """All knowledge bases, and the one to show: the requested, else `default`, else the first."""
+    """All knowledge bases, and the one to show: the requested, else the one updated last
+    (where the data a user wants to see is), else `default`, else the first."""
     bases = kbs.list_kbs(store)
     names = [b.name for b in bases]
     if requested is not None:
         return bases, requested
+    recent = browse.most_recent_kb(store)
+    if recent is not None:
+        return bases, recent
     if kbs.DEFAULT_KB in names:
         return bases, kbs.DEFAULT_KB
     return bases, names[0] if names else None

@@ -4,6 +4,50 @@
 // surrogate version arrive. A hidden tab does not poll; it catches up when shown again.
 (function () {
   "use strict";
+
+  async function redraw(box) {
+    const response = await fetch(box.dataset.src, { cache: "no-store" });
+    if (response.ok) box.innerHTML = await response.text();
+  }
+
+  function withParam(box, name, value) {
+    const url = new URL(box.dataset.src, window.location.href);
+    if (url.searchParams.get(name) === value) return false;
+    url.searchParams.set(name, value);
+    box.dataset.src = url.pathname + url.search;
+    return true;
+  }
+
+  // A figure of panels asks for as many a row as its box holds: on a phone they stack, their
+  // text at full size, rather than shrink until it cannot be read.
+  function fitColumns() {
+    for (const box of document.querySelectorAll(".figure[data-panel-px]")) {
+      const room = box.clientWidth - 16;
+      const fits = Math.floor(room / Number(box.dataset.panelPx));
+      const cols = Math.max(1, Math.min(Number(box.dataset.maxCols), fits));
+      if (withParam(box, "cols", String(cols))) redraw(box);
+    }
+  }
+  let resized = null;
+  window.addEventListener("resize", function () {
+    window.clearTimeout(resized);
+    resized = window.setTimeout(fitColumns, 300);
+  });
+  fitColumns();
+
+  // The history's axis: time (idle pauses left out), points or runs.
+  for (const choice of document.querySelectorAll(".axis-choice")) {
+    const box = document.getElementById(choice.dataset.figure);
+    choice.addEventListener("click", function (event) {
+      const button = event.target.closest("button[data-axis]");
+      if (!button || !box) return;
+      for (const b of choice.querySelectorAll("button")) {
+        b.setAttribute("aria-pressed", String(b === button));
+      }
+      if (withParam(box, "axis", button.dataset.axis)) redraw(box);
+    });
+  }
+
   const main = document.querySelector("main[data-poll]");
   const live = document.getElementById("live");
   if (!main) {
