@@ -19,6 +19,7 @@ from server.dashboard.heatmap import (
     slice_at,
 )
 from server.dashboard.history_svg import render_history_svg
+from server.dashboard.parallel import render_parallel_svg
 from server.dashboard.slices import render_slices_svg
 from server.db import Store
 from server.hooks import ServiceHooks
@@ -100,6 +101,10 @@ def heatmap(f: Inputs, x: str | None, y: str | None, n: int, cols: int | None = 
 
 def slices(f: Inputs, cols: int | None = None) -> str:
     return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance, cols)
+
+
+def parallel(f: Inputs, fit_axes: int | None = None) -> str:
+    return render_parallel_svg(f.space, f.observed, f.relevance, fit_axes)
 
 
 def type_history(store: Store, kb: str, type_id: str, axis: str = "time", cols: int = 2) -> str:

@@ -145,12 +145,14 @@ def type_page(
     inputs = _inputs(request, kb, type_id, table.hold)
     heatmap = Markup(figures.heatmap(inputs, data["x_dim"], data["y_dim"], 20))
     slices = Markup(figures.slices(inputs))
+    parallel = Markup(figures.parallel(inputs))
     history = Markup(figures.type_history(store, kb, type_id))
     context = {
         **data,
         "graph_svg": graph,
         "heatmap_svg": heatmap,
         "slices_svg": slices,
+        "parallel_svg": parallel,
         "history_svg": history,
         "held": inputs.held,
         "figure_key": _figure_key(data),
@@ -166,6 +168,17 @@ def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResp
     fragments = _fragments("_type.html", **data)
     data["table"] = {k: v for k, v in data["table"].items() if k != "query"}
     return JSONResponse({**data, "figure_key": _figure_key(data), "fragments": fragments})
+
+
+@router.get("/ui/compare", response_class=HTMLResponse)
+def compare_page(
+    request: Request,
+    a: Annotated[str, Query(max_length=64, description="the first knowledge base")],
+    b: Annotated[str, Query(max_length=64, description="the second knowledge base")],
+) -> Response:
+    """Two knowledge bases' types side by side."""
+    store, _ = _state(request)
+    return templates.TemplateResponse(request, "compare.html", views.compare(store, a, b))
 
 
 @router.get("/ui/kbs/{kb}/points/{point_id}", response_class=HTMLResponse)
@@ -205,6 +218,12 @@ def slices_svg(
     request: Request, kb: str, type_id: str, hold: PointId = None, cols: Cols = None
 ) -> Response:
     return Response(figures.slices(_inputs(request, kb, type_id, hold), cols), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/parallel.svg")
+def parallel_svg(request: Request, kb: str, type_id: str, cols: Cols = None) -> Response:
+    """Parallel coordinates of the type's points; `cols`: the axes the page's width holds."""
+    return Response(figures.parallel(_inputs(request, kb, type_id), cols), media_type=SVG)
 
 
 HistoryAxis = Annotated[

@@ -211,6 +211,16 @@ def type_status(
     return {
         "kb": kb,
         "type_id": type_id,
+        "by_task": [
+            {
+                **asdict(share),
+                "first": share.first.isoformat(),
+                "last": share.last.isoformat(),
+                "ratio": share.n_feasible / share.n,
+                "last_ago": ago(share.last),
+            }
+            for share in browse.per_task(store, kb, type_id)
+        ],
         "n_points": detail.n_points,
         "n_infeasible": detail.n_infeasible,
         "feasible_ratio": feasible_ratio(detail),
@@ -326,3 +336,39 @@ def point_page(
         "type_href": f"/ui/kbs/{quote(kb, safe='')}/types/{point.type_id}?hold={point_id}",
         "verdict": verdict,
     }
+
+
+def compare(store: Store, a: str, b: str) -> dict[str, Any]:
+    """Two knowledge bases side by side, a row per CP type (a type has one id in every base):
+    each base's points and feasible share of it, and the change from the first to the second."""
+    sides = {}
+    for name in (a, b):
+        page = browse.types_page(store, name, offset=0, limit=COMPARE_MAX_TYPES)
+        sides[name] = {row.summary.type_id: row.summary for row in page.rows}
+    ids = sorted(
+        set(sides[a]) | set(sides[b]),
+        key=lambda t: (-(sides[a].get(t) or sides[b][t]).n_points, t),
+    )
+    rows = []
+    for type_id in ids:
+        left, right = sides[a].get(type_id), sides[b].get(type_id)
+        known = left if left is not None else sides[b][type_id]
+        ratios = [None if s is None else feasible_ratio(s) for s in (left, right)]
+        first, second = ratios
+        rows.append(
+            {
+                "type_id": type_id,
+                "failure": known.failure,
+                "decisions": known.decisions,
+                "sides": [
+                    None if s is None else {"n": s.n_points, "ratio": r}
+                    for s, r in zip((left, right), ratios, strict=True)
+                ],
+                "change": None if first is None or second is None else second - first,
+            }
+        )
+    names = [k.name for k in kbs.list_kbs(store)]
+    return {"a": a, "b": b, "rows": rows, "kbs": names, "max_types": COMPARE_MAX_TYPES}
+
+
+COMPARE_MAX_TYPES = 500

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import case, func, select
 
 from client.models import PointOut, TypeSummary
 from server.db import Store
@@ -86,6 +86,39 @@ def one_point(store: Store, kb: str, type_id: str, point_id: int) -> PointOut:
         if row is None:
             raise NotFound(f"type {type_id} has no point #{point_id}")
         return point_out(row, type_id)
+
+
+@dataclass(frozen=True)
+class TaskShare:
+    """One task's part of a type: its points, how many feasible, when they were stored."""
+
+    task: str
+    n: int
+    n_feasible: int
+    first: datetime
+    last: datetime
+
+
+def per_task(store: Store, kb: str, type_id: str) -> list[TaskShare]:
+    """The type's points split by task, most points first: one type compared across tasks."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        rows = session.execute(
+            select(
+                PointRow.task,
+                func.count(PointRow.id),
+                func.sum(case((PointRow.feasible.is_(True), 1), else_=0)),
+                func.min(PointRow.created_at),
+                func.max(PointRow.created_at),
+            )
+            .where(PointRow.type_pk == type_pk)
+            .group_by(PointRow.task)
+        ).all()
+    shares = [
+        TaskShare(task or NO_TASK, int(n), int(ok or 0), first, last)
+        for task, n, ok, first, last in rows
+    ]
+    return sorted(shares, key=lambda s: (-s.n, s.task))
 
 
 def most_recent_kb(store: Store) -> str | None:

@@ -48,6 +48,42 @@
     });
   }
 
+  // Sortable tables: a click on a column's heading sorts the rows shown by it (numbers as
+  // numbers; a cell's data-sort wins over its text), again to reverse; kept across polls.
+  const sorted = {};
+  function cellKey(row, column) {
+    const cell = row.children[column];
+    if (!cell) return "";
+    return cell.dataset.sort !== undefined ? cell.dataset.sort : cell.textContent.trim();
+  }
+  function applySort(table) {
+    const state = sorted[table.id];
+    const body = table.tBodies[0];
+    if (!state || !body) return;
+    const rows = Array.from(body.rows).filter((r) => r.children.length > 1);
+    const keys = rows.map((r) => cellKey(r, state.column));
+    const numeric = keys.every((k) => k === "" || !Number.isNaN(Number(k)));
+    const order = rows.map((row, k) => [row, keys[k]]);
+    order.sort(function (p, q) {
+      const a = numeric ? Number(p[1] || -Infinity) : p[1];
+      const b = numeric ? Number(q[1] || -Infinity) : q[1];
+      return (a < b ? -1 : a > b ? 1 : 0) * state.direction;
+    });
+    for (const [row] of order) body.appendChild(row);
+    for (const th of table.tHead.rows[0].cells) th.removeAttribute("aria-sort");
+    const th = table.tHead.rows[0].cells[state.column];
+    th.setAttribute("aria-sort", state.direction > 0 ? "ascending" : "descending");
+  }
+  document.addEventListener("click", function (event) {
+    const th = event.target.closest("table.sortable thead th");
+    if (!th) return;
+    const table = th.closest("table");
+    const before = sorted[table.id];
+    const direction = before && before.column === th.cellIndex ? -before.direction : 1;
+    sorted[table.id] = { column: th.cellIndex, direction: direction };
+    applySort(table);
+  });
+
   const main = document.querySelector("main[data-poll]");
   const live = document.getElementById("live");
   if (!main) {
@@ -107,6 +143,7 @@
         if (element.dataset.html !== html) {
           element.innerHTML = html;
           element.dataset.html = html;
+          for (const table of element.querySelectorAll("table.sortable")) applySort(table);
         }
       }
       await refreshFigures(data.figure_key);
