@@ -234,16 +234,19 @@ HistoryAxis = Annotated[
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
 def type_history_svg(
-    request: Request, kb: str, type_id: str, axis: HistoryAxis = "time"
+    request: Request, kb: str, type_id: str, axis: HistoryAxis = "time", cols: Cols = None
 ) -> Response:
     store, _ = _state(request)
-    return Response(figures.type_history(store, kb, type_id, axis), media_type=SVG)
+    svg = figures.type_history(store, kb, type_id, axis, cols or 2)
+    return Response(svg, media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/history.svg")
-def kb_history_svg(request: Request, kb: str, axis: HistoryAxis = "time") -> Response:
+def kb_history_svg(
+    request: Request, kb: str, axis: HistoryAxis = "time", cols: Cols = None
+) -> Response:
     store, _ = _state(request)
-    return Response(figures.kb_history(store, kb, axis), media_type=SVG)
+    return Response(figures.kb_history(store, kb, axis, cols or 2), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/export.zip")

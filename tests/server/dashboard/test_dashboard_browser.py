@@ -66,7 +66,7 @@ def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
                 assert len(probs) >= 100
                 assert max(probs) > 0.7 and min(probs) < 0.3
                 expect_text = page.locator("#heatmap .cp-slice").text_content() or ""
-                assert "latest infeasible point" in expect_text
+                assert "the newest feasible point" in expect_text
 
                 # Uncertainty shows: the choices no point holds are hatched all over, the one
                 # the points hold is not, and the legend says what the hatch means.
@@ -130,6 +130,10 @@ def test_dashboard_in_headless_chromium(chromium: str, sqlite_url: str, tmp_path
                 page.on(
                     "console",
                     lambda msg: errors.append(msg.text) if msg.type == "error" else None,
+                )
+                page.on(
+                    "response",
+                    lambda r: errors.append(f"{r.status} {r.url}") if r.status >= 400 else None,
                 )
                 page.goto(f"{url}/")
                 types = page.locator("#types-table tbody tr")

@@ -76,3 +76,15 @@ def test_the_narrow_history_fits_a_phone() -> None:
     wide = ET.fromstring(render_history_svg(history, "task"))
     narrow = ET.fromstring(render_history_svg(history, "task", narrow=True))
     assert float(narrow.get("width")) < 360 < float(wide.get("width"))
+
+
+def test_the_history_images_take_the_columns_the_page_asks_for(core_client: Any) -> None:
+    points = [make_point(i, graph=make_graph("Inv-kin", ("box1",))) for i in range(6)]
+    results = core_client.post("/v1/kbs/default/points", json={"points": points}).json()
+    type_id = results["results"][0]["type_id"]
+    for url in (f"/ui/kbs/default/types/{type_id}/history.svg", "/ui/kbs/default/history.svg"):
+        narrow = core_client.get(url, params={"axis": "time", "cols": 1})
+        wide = core_client.get(url, params={"axis": "time", "cols": 2})
+        assert narrow.status_code == wide.status_code == 200
+        width = [float(ET.fromstring(r.text).get("width")) for r in (narrow, wide)]
+        assert width[0] < 360 < width[1]
