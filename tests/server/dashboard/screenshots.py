@@ -29,38 +29,46 @@ THEMES = ("light", "dark")
 
 
 def main(out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    graph = make_graph("Inv-kin", ("box1",), pose_domain=CUBE)
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        embedded_service(f"sqlite:///{Path(tmp) / 'kb.sqlite'}") as url,
+        CpkbClient(url) as client,
+    ):
+        type_id = client.post_points("default", _cube_points(graph, 0, 80))[0].type_id
+
+        def fitted() -> bool:
+            state = client.get_type("default", type_id).surrogate
+            return state is not None and state.n_fitted == 80
+
+        wait_until(fitted, timeout=600, what="the fit of all 80 points")
+        shoot(f"{url}/ui/kbs/default/types/{type_id}", out)
+
+
+def shoot(page_url: str, out: Path) -> None:
+    """A screen from the feasibility section down, at each size in each theme."""
     from playwright.sync_api import sync_playwright
 
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
-    out.mkdir(parents=True, exist_ok=True)
-    graph = make_graph("Inv-kin", ("box1",), pose_domain=CUBE)
-    with tempfile.TemporaryDirectory() as tmp:
-        with embedded_service(f"sqlite:///{Path(tmp) / 'kb.sqlite'}") as url, CpkbClient(
-            url
-        ) as client:
-            type_id = client.post_points("default", _cube_points(graph, 0, 80))[0].type_id
-
-            def fitted() -> bool:
-                state = client.get_type("default", type_id).surrogate
-                return state is not None and state.n_fitted == 80
-
-            wait_until(fitted, timeout=600, what="the fit of all 80 points")
-            with sync_playwright() as playwright:
-                browser = launch(playwright, chromium)
-                for size, (width, height) in SIZES.items():
-                    for theme in THEMES:
-                        page = browser.new_page(
-                            viewport={"width": width, "height": height}, color_scheme=theme
-                        )
-                        page.goto(f"{url}/ui/kbs/default/types/{type_id}")
-                        page.wait_for_timeout(2000)  # the figures fit themselves to the width
-                        page.locator("#heatmap").scroll_into_view_if_needed()
-                        page.evaluate("window.scrollBy(0, -40)")
-                        shot = Image.open(io.BytesIO(page.screenshot()))
-                        small = shot.convert("RGB").quantize(colors=256, method=Image.MEDIANCUT)
-                        small.save(out / f"type-page-{size}-{theme}.png", optimize=True)
-                        page.close()
-                browser.close()
+    with sync_playwright() as playwright:
+        browser = launch(playwright, chromium)
+        for size, (width, height) in SIZES.items():
+            for theme in THEMES:
+                page = browser.new_page(
+                    viewport={"width": width, "height": height}, color_scheme=theme
+                )
+                page.goto(page_url)
+                page.wait_for_timeout(3000)  # the figures fit themselves to the width
+                page.evaluate(
+                    "document.querySelector('#dims-panel').scrollIntoView({block: 'start'});"
+                    "window.scrollBy(0, -50)"
+                )
+                shot = Image.open(io.BytesIO(page.screenshot()))
+                small = shot.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+                small.save(out / f"type-page-{size}-{theme}.png", optimize=True)
+                page.close()
+        browser.close()
 
 
 if __name__ == "__main__":

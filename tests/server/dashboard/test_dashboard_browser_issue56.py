@@ -171,9 +171,11 @@ def test_a_phone_stacks_the_figures_at_a_readable_size(
     page.goto(_type_url(service))
     expect(page.locator("#heatmap")).to_have_attribute("data-src", re.compile("cols=1"))
     expect(page.locator("#history")).to_have_attribute("data-src", re.compile("cols=1"))
-    page.wait_for_function(
-        "document.querySelector('#history svg').getAttribute('width') < 400", timeout=60_000
-    )
+    for figure in ("#heatmap", "#slices", "#history"):
+        page.wait_for_function(
+            f"+document.querySelector('{figure} svg').getAttribute('width') < 400",
+            timeout=LIVE_TIMEOUT_MS,
+        )
     lefts = page.eval_on_selector_all(
         "#heatmap g.cp-heatmap-panel rect.cp-cell:first-of-type",
         "cells => cells.map(c => Math.round(c.getBoundingClientRect().left))",
@@ -239,8 +241,10 @@ def test_sortable_table_parallel_coordinates_point_pages_and_compare(
     page = browser.new_page(viewport={"width": 1400, "height": 900})
     page.goto(_type_url(service) + "?order=oldest&run=run-1")
     expect(page.locator("#points-count")).to_contain_text("points match")
+    headings = page.eval_on_selector_all("#points-table thead th", "t => t.map(h => h.textContent)")
+    column = headings.index("run")
     runs = page.eval_on_selector_all(
-        "#points-table tbody tr", "rows => rows.map(r => r.children[5 + 2].textContent)"
+        "#points-table tbody tr", f"rows => rows.map(r => r.children[{column}].textContent)"
     )
     assert runs and set(runs) == {"run-1"}
     header = page.locator("#points-table thead th").first
