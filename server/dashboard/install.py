@@ -3,6 +3,7 @@ HTML pages answered as an HTML page (a person reads them) while the API keeps it
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -15,6 +16,8 @@ from starlette.responses import Response
 from server.dashboard.routes import templates
 from server.errors import ServiceError
 
+# The app's JSON error handlers, which install_error_handlers registers as coroutines.
+Handler = Callable[[Request, Exception], Awaitable[Response]]
 GZIP_MIN_BYTES = 1000  # smaller answers gain less than the header costs
 TITLES = {404: "Not found", 422: "Bad request"}
 
@@ -39,8 +42,8 @@ def _validation_message(exc: RequestValidationError) -> str:
 
 def install_dashboard(app: FastAPI) -> None:
     app.add_middleware(GZipMiddleware, minimum_size=GZIP_MIN_BYTES)
-    as_json_service = app.exception_handlers[ServiceError]
-    as_json_validation = app.exception_handlers[RequestValidationError]
+    as_json_service: Handler = app.exception_handlers[ServiceError]  # type: ignore[assignment]
+    as_json_validation: Handler = app.exception_handlers[RequestValidationError]  # type: ignore[assignment]
 
     async def service_error(request: Request, exc: Exception) -> Any:
         if is_html_page(request) and isinstance(exc, ServiceError):

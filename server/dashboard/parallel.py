@@ -24,12 +24,15 @@ _INK = "#111827"
 _MUTED = "#6b7280"
 
 
+Axis = tuple[str, str, int, float, float, list[str]]  # name, label, index, low, high, choices
+
+
 def _axes(
     space: dict[str, CategoricalDomain | ContinuousDomain], relevance: dict[str, float]
-) -> list[tuple[str, str, int, float, float, list[str]]]:
+) -> list[Axis]:
     """(name, label, index, low, high, choices) per axis; continuous ones by relevance."""
     dims = sorted(continuous_dims(space), key=lambda d: relevance.get(d.name, math.inf))
-    axes = [(d.name, d.label, d.index, d.low, d.high, []) for d in dims]
+    axes: list[Axis] = [(d.name, d.label, d.index, d.low, d.high, []) for d in dims]
     for label, domain in space.items():
         if isinstance(domain, CategoricalDomain):
             axes.append((label, label, -1, 0.0, 1.0, list(domain.choices)))
@@ -61,7 +64,7 @@ def render_parallel_svg(
         out.append(f'<text x="10" y="30" font-size="12" fill="{_MUTED}">{note}</text></svg>')
         return "".join(out)
 
-    def y_of(axis: tuple[str, str, int, float, float, list[str]], x: dict[str, Value]) -> float:
+    def y_of(axis: Axis, x: dict[str, Value]) -> float:
         _, label, index, low, high, choices = axis
         value = x.get(label)
         if choices:

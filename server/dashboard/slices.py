@@ -219,15 +219,15 @@ def _choice_panel(
     for i, choice in enumerate(domain.choices):
         n = total[choice]
         share = good[choice] / n if n else 0.0
-        x = ox + i * bar_w
+        left = ox + i * bar_w
         parts.append(
-            f'<rect class="cp-choice-bar" x="{x + 3:.1f}" y="{oy + _H * (1 - share):.1f}" '
+            f'<rect class="cp-choice-bar" x="{left + 3:.1f}" y="{oy + _H * (1 - share):.1f}" '
             f'width="{bar_w - 6:.1f}" height="{_H * share:.1f}" fill="{_CURVE}" '
             f'fill-opacity="0.7"><title>{escape(choice)}: {good[choice]} of {n} feasible'
             "</title></rect>"
-            f'<text x="{x + bar_w / 2:.1f}" y="{oy + _H + 12:.1f}" font-size="9" '
+            f'<text x="{left + bar_w / 2:.1f}" y="{oy + _H + 12:.1f}" font-size="9" '
             f'text-anchor="middle" fill="{_INK}">{escape(_fit(choice, bar_w))}</text>'
-            f'<text x="{x + bar_w / 2:.1f}" y="{oy + _H + 22:.1f}" font-size="9" '
+            f'<text x="{left + bar_w / 2:.1f}" y="{oy + _H + 22:.1f}" font-size="9" '
             f'text-anchor="middle" fill="{_MUTED}">{n}</text>'
         )
     parts.append("</g>")

@@ -260,12 +260,12 @@ def history(
     with store.transaction() as session:
         if type_id is not None:
             type_pk = type_row(session, kb, type_id).id
-            query = select(
+            of_type = select(
                 PointRow.id, PointRow.created_at, PointRow.feasible, PointRow.run, PointRow.task
             ).where(PointRow.type_pk == type_pk)
             rows = [
                 (pid, t, ok, run, task or NO_TASK)
-                for pid, t, ok, run, task in session.execute(query.order_by(PointRow.id))
+                for pid, t, ok, run, task in session.execute(of_type.order_by(PointRow.id))
             ]
         else:
             kb_pk = kb_id(session, kb)
@@ -277,12 +277,12 @@ def history(
                     )
                 )
             }
-            query = select(
+            of_kb = select(
                 PointRow.id, PointRow.created_at, PointRow.feasible, PointRow.run, PointRow.type_pk
             ).where(PointRow.kb_id == kb_pk)
             rows = [
                 (pid, t, ok, run, names[pk])
-                for pid, t, ok, run, pk in session.execute(query.order_by(PointRow.id))
+                for pid, t, ok, run, pk in session.execute(of_kb.order_by(PointRow.id))
             ]
     totals = Counter(row[4] for row in rows)
     kept = [name for name, _ in totals.most_common(max_series)]

@@ -132,10 +132,10 @@ def _kb_lines(store: Store, kb_pk: int, where: PointFilter, page_size: int) -> I
         query = (
             select(PointRow, TypeRow.type_id, TypeRow.failure)
             .join(TypeRow, TypeRow.id == PointRow.type_pk)
-            .where(PointRow.kb_id == kb_pk, PointRow.id > after)
+            .where(PointRow.kb_id == kb_pk, PointRow.id > after, *where.conditions())
         )
         with store.transaction() as session:
-            rows = session.execute(where.apply(query).order_by(PointRow.id).limit(page_size)).all()
+            rows = session.execute(query.order_by(PointRow.id).limit(page_size)).all()
             page = [(point_out(r, type_id), type_id, failure) for r, type_id, failure in rows]
         for p, type_id, failure in page:
             x = json.dumps(p.x, separators=(",", ":"))

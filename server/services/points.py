@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import Select, bindparam, func, insert, or_, select, update
+from sqlalchemy import ColumnElement, Select, bindparam, func, insert, or_, select, update
 from sqlalchemy.orm import Session
 
 from client.models import (
@@ -330,21 +330,26 @@ class PointFilter:
     since: datetime | None = None
     until: datetime | None = None
 
-    def apply(self, query: Select[Any]) -> Select[Any]:
+    def conditions(self) -> list[ColumnElement[bool]]:
+        """The WHERE conditions of this filter (none: every point)."""
+        out: list[ColumnElement[bool]] = []
         if self.feasible is not None:
-            query = query.where(PointRow.feasible.is_(self.feasible))
+            out.append(PointRow.feasible.is_(self.feasible))
         for column, value in (
             (PointRow.task, self.task),
             (PointRow.run, self.run),
             (PointRow.worker, self.worker),
         ):
             if value is not None:
-                query = query.where(column == value)
+                out.append(column == value)
         if self.since is not None:
-            query = query.where(PointRow.created_at >= self.since)
+            out.append(PointRow.created_at >= self.since)
         if self.until is not None:
-            query = query.where(PointRow.created_at < self.until)
-        return query
+            out.append(PointRow.created_at < self.until)
+        return out
+
+    def apply(self, query: Select[Any]) -> Select[Any]:
+        return query.where(*self.conditions())
 
 
 def parse_cursor(cursor: str | None) -> int | None:
