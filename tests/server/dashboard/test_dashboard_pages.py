@@ -237,6 +237,7 @@ def test_type_json_follows_new_points(stocked: dict[str, Any]) -> None:
         "surrogate-panel",
         "dims-panel",
         "relevance-panel",
+        "tasks-panel",
         "points-panel",
     }
     _post(client, "default", [make_point(7, graph=make_graph("Plan-motion", ("shelf",)))])
