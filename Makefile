@@ -42,8 +42,11 @@ format: setup
 	$(BIN)/ruff check --fix .
 	$(BIN)/ruff format .
 
+# A first taste of the paper's evaluation: desk, quasi-random against cp-bo, 5 seeds each (a few
+# minutes). The whole default evaluation is 1,500 runs: `make bench BENCH_ARGS=`.
+BENCH_ARGS ?= --tasks desk --methods quasi-random,cp-bo --seeds 5
 bench: setup
-	$(BIN)/cpkb bench --out bench-out
+	$(BIN)/cpkb bench --out bench-out $(BENCH_ARGS)
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -13,6 +13,7 @@ from fastapi_offline import FastAPIOffline
 
 from server import __version__
 from server.api import INSTALLERS, ROUTERS
+from server.api.query import known_query_only
 from server.db import Store
 from server.errors import install_error_handlers
 from server.hooks import ServiceHooks
@@ -51,7 +52,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         summary="Constraint-primitive knowledge base for task and motion planning",
         lifespan=lifespan,
-        dependencies=[Depends(bearer_scheme)],
+        dependencies=[Depends(bearer_scheme), Depends(known_query_only)],
     )
     app.state.settings = settings
     app.state.store = store

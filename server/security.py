@@ -212,14 +212,35 @@ def _local_path(target: str) -> str:
     return target if target.startswith("/") and not target.startswith("//") else "/"
 
 
+# Inline, not the dashboard's stylesheet: when reads need a token, that file needs one too.
+LOGIN_STYLE = (
+    ":root{color-scheme:light dark;--ink:#111827;--muted:#6b7280;--line:#e5e7eb;"
+    "--page:#f9fafb;--panel:#fff;--accent:#2563eb;--bad:#b91c1c}"
+    "@media (prefers-color-scheme:dark){:root{--ink:#e5e7eb;--muted:#9ca3af;--line:#374151;"
+    "--page:#0b1120;--panel:#111827;--accent:#93c5fd;--bad:#f87171}}"
+    "body{margin:0;font:14px/1.45 system-ui,sans-serif;color:var(--ink);"
+    "background:var(--page);display:grid;place-items:center;min-height:100vh}"
+    "main{background:var(--panel);border:1px solid var(--line);border-radius:8px;"
+    "padding:1.5rem 2rem;width:min(24rem,92vw)}h1{font-size:1.2rem;margin:0 0 1rem}"
+    "form{display:flex;flex-direction:column;gap:.8rem}label{display:flex;flex-direction:column;"
+    "gap:.3rem;color:var(--muted)}input,button{font:inherit;color:var(--ink);padding:.4rem .5rem;"
+    "border:1px solid var(--line);border-radius:4px;background:var(--page)}"
+    "button{background:var(--accent);color:var(--panel);border:0;cursor:pointer}"
+    "[role=alert]{color:var(--bad);margin:0 0 .8rem}"
+)
+
+
 def _login_page(target: str, error: str = "") -> str:
     message = f"<p role=alert>{html.escape(error)}</p>" if error else ""
     return (
-        "<!doctype html><title>cpkb: sign in</title><h1>cpkb knowledge base</h1>"
+        "<!doctype html><html lang=en><meta charset=utf-8>"
+        "<meta name=viewport content='width=device-width, initial-scale=1'>"
+        f"<title>cpkb: sign in</title><style>{LOGIN_STYLE}</style>"
+        "<main><h1>cpkb knowledge base</h1>"
         f"{message}<form method=post action=/login>"
         f"<input type=hidden name=next value='{html.escape(_local_path(target), quote=True)}'>"
         "<label>Token <input type=password name=token autofocus></label>"
-        "<button>Sign in</button></form>"
+        "<button>Sign in</button></form></main>"
     )
 
 

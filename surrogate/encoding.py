@@ -192,6 +192,36 @@ class SpaceEncoder:
             if var.table is not None
         )
 
+    def column_names(self) -> list[str]:
+        """A name for each of the `dim` columns of Z, for people reading a fit's lengthscales:
+        `pose[0]` (a heading on a circle: `pose[2] cos` and `pose[2] sin`), `dir=top` for a
+        one-hot choice (`dir[k]` for an embedding's), `|a-b|[0]` for a separation and
+        `a~b x in b`, `a~b y in b`, `a~b x in a`, `a~b y in a`, `a~b turn` for a relative pose."""
+        names = [""] * self.dim
+        for var in self.vars:
+            if not var.in_z:
+                continue
+            if var.table is not None:
+                one_hot = isinstance(var.domain, CategoricalDomain) and var.domain.embedding is None
+                for k in range(var.width):
+                    label = f"={var.domain.choices[k]}" if one_hot else f"[{k}]"  # type: ignore[union-attr]
+                    names[var.start + k] = var.name + label
+                continue
+            for i in range(var.width):
+                names[var.start + i] = f"{var.name}[{i}]" + (" cos" if i == var.circle else "")
+            if var.circle is not None:
+                names[var.start + var.width] = f"{var.name}[{var.circle}] sin"
+        start = self.base_dim
+        for a, b, heading, _ in self._pair_rules:
+            if heading is None:
+                width = len(self.space[a].low)  # type: ignore[union-attr]
+                parts = [f"|{a}-{b}|[{i}]" for i in range(width)]
+            else:
+                parts = [f"{a}~{b} {what}" for what in _RELATIVE_POSE_PARTS]
+            names[start : start + len(parts)] = parts
+            start += len(parts)
+        return names
+
     # --- points <-> columns -------------------------------------------------------------
     def columns(self, points: Sequence[Mapping[str, Value]], where: str = "") -> Columns:
         """Validated columns of `points`; every variable must be present; extra keys ignored.
@@ -311,6 +341,7 @@ def _framed_pairs(variables: Sequence[_Var]) -> list[tuple[_Var, _Var]]:
 
 
 RELATIVE_POSE_WIDTH = 5
+_RELATIVE_POSE_PARTS = ("x in b", "y in b", "x in a", "y in a", "turn")
 
 
 def _shared_heading(a: _Var, b: _Var) -> int | None:

@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 from rich.console import Console
-from rich.table import Table
 
 from cpkb.bench.kbs import ServiceKbs
 from cpkb.bench.plots import write_plots
@@ -42,6 +41,7 @@ from cpkb.bench.together import HEADERS as TOGETHER_HEADERS
 from cpkb.bench.together import GroupCheck, summarize_together, write_together
 from cpkb.bench.together import table_rows as together_rows
 from cpkb.bench.variants import Variant
+from cpkb.cli.tables import whole_names_table
 from server.cpus import format_cpu_list
 from server.settings import surrogate_overrides
 
@@ -252,10 +252,8 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
             by_kind = summarize_by_kind(records, kinds, settings.methods, baseline)
             paths += write_summary(by_kind, out_dir, f"summary_by_kind{suffix}", baseline)
         if not suffix:
-            table = Table(*headers(baseline), title=f"cpkb bench: {len(records)} runs in {out_dir}")
-            for cells in table_rows(rows):
-                table.add_row(*cells)
-            console.print(table)
+            title = f"cpkb bench: {len(records)} runs in {out_dir}"
+            console.print(whole_names_table(headers(baseline), table_rows(rows), title))
             console.print(notes(baseline))
     paths += write_plots(records, out_dir, settings.tasks, settings.methods)
     if settings.concurrent > 1:
@@ -276,10 +274,8 @@ def _report_together(
     alone = ResultStore(alone_dir(settings)).records()
     rows = summarize_together(records, alone, settings.tasks, settings.methods)
     check = GroupCheck.of(ResultStore(settings.out_dir).groups())
-    table = Table(*TOGETHER_HEADERS, title=f"together against alone ({alone_dir(settings)})")
-    for cells in together_rows(rows):
-        table.add_row(*cells)
-    console.print(table)
+    title = f"together against alone ({alone_dir(settings)})"
+    console.print(whole_names_table(TOGETHER_HEADERS, together_rows(rows), title))
     console.print(check.line())
     return write_together(rows, check, settings.out_dir)
 

@@ -9,7 +9,14 @@ from typing import Any
 from cpkb.cli import CliError
 from cpkb.cli.argtypes import parse_duration
 from cpkb.cli.config_args import add_config_arguments, plan_config
-from cpkb.cli.reach import EXIT_STATUS_HELP, checked_kb_name, checked_url, explained, probe
+from cpkb.cli.reach import (
+    EXIT_STATUS_HELP,
+    checked_kb_name,
+    checked_url,
+    explained,
+    probe,
+    require_kb,
+)
 
 METHODS = ("quasi-random", "quasi-random-restarts", "mcts-bo", "cp-bo", "cp-bo-paper", "optuna-tpe")
 
@@ -51,7 +58,17 @@ def register(subparsers: Any) -> None:
         help="knowledge-base service URL, or its replicas' as URL1,URL2 (the client fails over); "
         "default: an embedded one",
     )
-    plan.add_argument("--kb", default="default", help="knowledge base name (default: default)")
+    plan.add_argument(
+        "--kb",
+        default="default",
+        help="knowledge base name (default: default); any other must exist, or pass --create-kb",
+    )
+    plan.add_argument(
+        "--create-kb",
+        action="store_true",
+        help="create the --kb knowledge base if it does not exist (else a name that does not "
+        "exist is an error: a misspelt one would learn from nothing)",
+    )
     plan.add_argument("--token", help="access token (default: CPKB_TOKEN)")
     plan.add_argument(
         "--suggest-in",
@@ -129,11 +146,13 @@ def _check_knowledge(args: argparse.Namespace, token: str | None) -> None:
     from planner.search import samplers
 
     checked_kb_name(args.kb)
-    if args.kb_url is None or args.method not in samplers.methods():
+    if args.method not in samplers.methods() or not samplers.uses_knowledge(args.method):
         return
-    checked_url(args.kb_url)
-    if samplers.uses_knowledge(args.method):
-        probe(args.kb_url, token, kb=args.kb)
+    if args.kb_url is not None:
+        checked_url(args.kb_url)
+        probe(args.kb_url, token, kb=args.kb if args.create_kb else None)
+    if not args.create_kb:
+        require_kb(args.kb, args.kb_url, token)
 
 
 def _configured_token() -> str | None:
@@ -191,21 +210,32 @@ def _summary(result: Any) -> None:
             f"{stats.points_posted} points posted; {stats.suggestions} suggestions"
         )
     if result.bindings:
-        console.print("bindings: " + json.dumps(result.bindings))
+        # Plain print: rich wraps at 80 columns when piped, and this line is pasted whole into
+        # `cpkb render --binding`.
+        print("bindings: " + json.dumps(result.bindings), flush=True)
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from cpkb.embedded import service_url
+    import httpx
+
+    from client import CpkbError
+    from cpkb.embedded import EmbeddedServiceError, service_url
     from planner.demo import run_demo
 
     if args.seeds < 1 or args.predecessor_rollouts < 1:
         raise CliError("--seeds and --predecessor-rollouts must be at least 1")
-    with service_url(args.kb_url, args.db) as url:
-        return run_demo(
-            url,
-            seeds=args.seeds,
-            predecessor_rollouts=args.predecessor_rollouts,
-            prefix="analytic:" if args.analytic else "",
-            embedded=args.kb_url is None,
-            db=args.db,
-        )
+    token = _configured_token()
+    if args.kb_url is not None:
+        probe(checked_url(args.kb_url), token)
+    try:
+        with service_url(args.kb_url, args.db) as url:
+            return run_demo(
+                url,
+                seeds=args.seeds,
+                predecessor_rollouts=args.predecessor_rollouts,
+                prefix="analytic:" if args.analytic else "",
+                embedded=args.kb_url is None,
+                db=args.db,
+            )
+    except (CpkbError, EmbeddedServiceError, httpx.HTTPError) as exc:
+        raise explained(exc, args.kb_url or "the embedded service", token) from None

@@ -109,3 +109,61 @@ def probe(url: str, token: str | None, kb: str | None = None) -> None:
                 client.delete_kb(f"cpkb-probe-{uuid.uuid4().hex}")
     except CpkbError as exc:
         raise explained(exc, url, token) from None
+
+
+def _names_in_database(db_url: str | None) -> list[str] | None:
+    """The knowledge bases of the database an embedded service would open, read directly
+    (nothing created: a missing SQLite file holds none); None when it cannot be read, which
+    the service's own start then reports."""
+    from pathlib import Path
+
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from server.db import DatabaseUrlError, Store
+    from server.errors import ServiceError
+    from server.services import kbs
+    from server.settings import Settings
+
+    url = db_url or Settings().database_url
+    try:
+        parsed = make_url(url)
+        on_file = parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "")
+        if on_file and parsed.database != ":memory:" and not Path(str(parsed.database)).exists():
+            return []
+        store = Store.from_url(url)
+        try:
+            return [kb.name for kb in kbs.list_kbs(store)]
+        finally:
+            store.dispose()
+    except (SQLAlchemyError, ServiceError, DatabaseUrlError, ImportError):
+        return None  # the embedded service's start says why
+
+
+def require_kb(kb: str, url: str | None, token: str | None) -> None:
+    """A usage error unless knowledge base `kb` exists at `url` (None: the embedded service's
+    database); `default` always does (the service makes it). So a misspelt `--kb` fails at
+    once instead of starting a run that learns from nothing."""
+    from client import CpkbClient, CpkbError
+    from server.services.kbs import DEFAULT_KB
+
+    if kb == DEFAULT_KB:
+        return
+    if url is None:
+        names = _names_in_database(None)
+        where = "in the embedded service's database"
+        if names is None:
+            return
+    else:
+        where = f"at {url}"
+        try:
+            with CpkbClient(url, token=token, retries=1, backoff=0.1) as client:
+                names = [b.name for b in client.list_kbs()]
+        except CpkbError as exc:
+            raise explained(exc, url, token) from None
+    if kb not in names:
+        known = ", ".join(sorted(names)) or "none"
+        raise CliError(
+            f"knowledge base {kb!r} does not exist {where} (it has: {known}); "
+            "pass --create-kb to start a new, empty one"
+        )

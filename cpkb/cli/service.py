@@ -8,7 +8,7 @@ import socket
 from typing import Any
 
 from cpkb.cli import CliError
-from cpkb.cli.reach import checked_url
+from cpkb.cli.reach import checked_url, explained
 
 
 def register(subparsers: Any) -> None:
@@ -199,10 +199,10 @@ def _serve(args: argparse.Namespace) -> int:
             app = create_app(settings)
         except SecurityConfigError as exc:
             raise CliError(str(exc)) from exc
-        port = listener.getsockname()[1]
+        url = served_url(settings.host, listener.getsockname()[1])
         print(
-            f"cpkb: serving {_shown(settings.database_url)} at "
-            f"http://{settings.host}:{port} (API docs at /docs)",
+            f"cpkb: serving {_shown(settings.database_url)} at {url} (the dashboard; API docs "
+            f"at {url}docs); Ctrl-C stops it",
             flush=True,
         )
         from server.observability import configure_json_logging
@@ -215,6 +215,15 @@ def _serve(args: argparse.Namespace) -> int:
         )
         uvicorn.Server(config).run(sockets=[listener])
     return 0
+
+
+def served_url(host: str, port: int) -> str:
+    """The URL to open for a service listening on host:port: a wildcard address is reached on
+    loopback from this machine, an IPv6 address goes in brackets."""
+    shown = {"0.0.0.0": "127.0.0.1", "::": "[::1]", "": "127.0.0.1"}.get(host, host)
+    if ":" in shown and not shown.startswith("["):
+        shown = f"[{shown}]"
+    return f"http://{shown}:{port}/"
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -249,30 +258,19 @@ def _db_upgrade(args: argparse.Namespace) -> int:
     return 0
 
 
-def _client(args: argparse.Namespace) -> Any:
-    from client import CpkbClient
+def _run(args: argparse.Namespace, call: Any) -> Any:
+    """`call(client)`, a failed call to the service as the one-line error (exit 3) that `plan`
+    and `bench` give too."""
+    from client import CpkbClient, CpkbError
 
     settings = _settings(url=args.url)
-    checked_url(settings.url)
+    url = checked_url(settings.url)
     token = args.token or (settings.token.get_secret_value() if settings.token else None)
-    return CpkbClient(settings.url, timeout=30.0, retries=2, backoff=0.1, token=token)
-
-
-def _run(args: argparse.Namespace, call: Any) -> Any:
-    from client import CpkbError, ServiceUnavailable
-
-    with _client(args) as client:
+    with CpkbClient(url, timeout=30.0, retries=2, backoff=0.1, token=token) as client:
         try:
             return call(client)
-        except ServiceUnavailable as exc:
-            if exc.status is None:
-                raise CliError(
-                    f"cannot reach the knowledge base at {', '.join(client.urls)} "
-                    "(start it with `cpkb serve`, or pass --kb-url)"
-                ) from exc
-            raise CliError(str(exc.detail)) from exc
         except CpkbError as exc:
-            raise CliError(str(exc.detail)) from exc
+            raise explained(exc, url, token) from None
 
 
 def _console() -> Any:
@@ -347,6 +345,8 @@ def _types(args: argparse.Namespace) -> int:
         caption=caption,
     )
     table.columns[0].no_wrap = True  # the id is what a user copies into an API call
+    for column in table.columns[1:]:
+        column.overflow = "fold"  # a long name wraps, never ends in an ellipsis
     for t, detail in zip(types, details, strict=True):
         updated = t.updated_at.strftime("%Y-%m-%d %H:%M:%S") if t.updated_at else ""
         fit, fitted = _fit_state(detail.surrogate, t.n_points)

@@ -25,4 +25,8 @@ ROUTERS: list[APIRouter] = [
     surrogate_routes.router,
     dashboard.router,
 ]
-INSTALLERS: list[Callable[[FastAPI], None]] = [install_observability, install_surrogates]
+INSTALLERS: list[Callable[[FastAPI], None]] = [
+    install_observability,
+    install_surrogates,
+    dashboard.install_dashboard,
+]

@@ -15,7 +15,7 @@ from typing import IO
 
 from server.db import Store
 from server.hooks import ServiceHooks
-from server.services import points, types
+from server.services import csv_tables, types
 
 SPOOL_BYTES = 16 * 1024 * 1024
 CHUNK_BYTES = 256 * 1024
@@ -33,7 +33,7 @@ def write_export(store: Store, hooks: ServiceHooks, kb: str, out: IO[bytes]) -> 
             record["surrogate"] = None if state is None else state.model_dump(mode="json")
             details.append(record)
             with archive.open(f"points/{s.type_id}.csv", "w") as member:
-                for chunk in points.iter_csv(store, kb, s.type_id):
+                for chunk in csv_tables.iter_csv(store, kb, s.type_id):
                     member.write(chunk.encode("utf-8"))
         meta = {"kb": kb, "exported_at": datetime.now(UTC).isoformat(), "types": details}
         archive.writestr("types.json", json.dumps(meta, indent=1))

@@ -16,8 +16,10 @@ from server.dashboard.heatmap import (
     choose_slice,
     continuous_dims,
     render_heatmap_svg,
+    slice_at,
 )
 from server.dashboard.history_svg import render_history_svg
+from server.dashboard.parallel import render_parallel_svg
 from server.dashboard.slices import render_slices_svg
 from server.db import Store
 from server.hooks import ServiceHooks
@@ -68,34 +70,47 @@ def inputs(
     kb: str,
     type_id: str,
     judge: EnginePredict | None = None,
+    hold: int | None = None,
 ) -> Inputs:
+    """`hold`: the id of the point the pictures are drawn through (NotFound if the type has
+    none such); by default the newest feasible point."""
     detail = types.get_type(store, kb, type_id)
     state = views.surrogate_state(hooks, kb, type_id) or {}
-    observed = views.observed_points(store, kb, type_id)
+    ids, observed = views.observed_points(store, kb, type_id)
+    if hold is None:
+        held = choose_slice(detail.space, observed, ids)
+    else:
+        point = browse.one_point(store, kb, type_id, hold)
+        held = slice_at(detail.space, point.x, f"point #{hold}, as chosen", hold)
     return Inputs(
         space=detail.space,
         relevance=views.dim_lengthscales(detail.space, state.get("lengthscales")),
         observed=observed,
         predict=predictor(engine, kb, type_id),
-        held=choose_slice(detail.space, observed),
+        held=held,
         judge=judge_of(judge, kb, type_id),
     )
 
 
-def heatmap(f: Inputs, x: str | None, y: str | None, n: int) -> str:
+def heatmap(f: Inputs, x: str | None, y: str | None, n: int, cols: int | None = None) -> str:
     dx, dy = views.choose_dims(continuous_dims(f.space), x, y, f.relevance)
     return render_heatmap_svg(
-        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, judge=f.judge
+        f.space, dx, dy, f.predict, f.observed, n=n, held=f.held, judge=f.judge, cols=cols
     )
 
 
-def slices(f: Inputs) -> str:
-    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance)
+def slices(f: Inputs, cols: int | None = None) -> str:
+    return render_slices_svg(f.space, f.predict, f.observed, f.held, f.relevance, cols)
 
 
-def type_history(store: Store, kb: str, type_id: str) -> str:
-    return render_history_svg(browse.history(store, kb, type_id), "task")
+def parallel(f: Inputs, fit_axes: int | None = None) -> str:
+    return render_parallel_svg(f.space, f.observed, f.relevance, fit_axes)
 
 
-def kb_history(store: Store, kb: str) -> str:
-    return render_history_svg(browse.history(store, kb), "type")
+def type_history(store: Store, kb: str, type_id: str, axis: str = "time", cols: int = 2) -> str:
+    history = browse.history(store, kb, type_id, axis=axis)
+    return render_history_svg(history, "task", narrow=cols < 2)
+
+
+def kb_history(store: Store, kb: str, axis: str = "time", cols: int = 2) -> str:
+    return render_history_svg(browse.history(store, kb, axis=axis), "type", narrow=cols < 2)

@@ -18,10 +18,9 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-import statistics
 import textwrap
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from html import escape
 
 from contract.models import CategoricalDomain, ContinuousDomain
@@ -82,10 +81,14 @@ def panels_of(space: dict[str, CategoricalDomain | ContinuousDomain]) -> list[di
 
 @dataclass(frozen=True)
 class Slice:
-    """The values the dimensions off the axes are held at, and where they come from."""
+    """The point the dimensions off the axes are held at: its continuous values, its choices
+    (the slices hold them; the heat map draws a panel per choice), where it comes from, and
+    its id when it is a stored point."""
 
     values: dict[str, list[float]]
     origin: str
+    choices: dict[str, str] = field(default_factory=dict)
+    point_id: int | None = None
 
 
 def mid_range(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[str, list[float]]:
@@ -96,23 +99,80 @@ def mid_range(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[st
     }
 
 
+def _first_choices(space: dict[str, CategoricalDomain | ContinuousDomain]) -> dict[str, str]:
+    return {lab: d.choices[0] for lab, d in space.items() if isinstance(d, CategoricalDomain)}
+
+
+def slice_at(
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    x: dict[str, Value],
+    origin: str,
+    point_id: int | None = None,
+) -> Slice:
+    """The slice through decision values `x` (a stored point's)."""
+    values = {lab: [float(v) for v in x[lab]] for lab in mid_range(space)}
+    choices = {lab: str(x[lab]) for lab in _first_choices(space)}
+    return Slice(values, origin, choices, point_id)
+
+
 def choose_slice(
     space: dict[str, CategoricalDomain | ContinuousDomain],
     observed: Sequence[tuple[dict[str, Value], bool]],
+    ids: Sequence[int] | None = None,
 ) -> Slice:
-    """The latest infeasible point's continuous values (a map through a known failure shows
-    the boundary near it), else the data's median, else mid-range."""
-    mids = mid_range(space)
-    for x, feasible in reversed(observed):
-        if not feasible and all(isinstance(x.get(lab), list) for lab in mids):
-            return Slice({lab: list(x[lab]) for lab in mids}, "the latest infeasible point")  # type: ignore[arg-type]
-    if observed and mids:
-        values = {
-            lab: [statistics.median(float(x[lab][i]) for x, _ in observed) for i in range(len(mid))]
-            for lab, mid in mids.items()
-        }
-        return Slice(values, "the data's median")
-    return Slice(mids, "mid-range")
+    """The default slice: through the newest feasible point (the map then shows what the model
+    makes of a known success, where a planner wants to be), else the newest point, else
+    mid-range. `ids` are the observed points' ids, oldest first, to name the point."""
+    for k in range(len(observed) - 1, -1, -1):
+        x, feasible = observed[k]
+        if feasible:
+            point_id = ids[k] if ids is not None else None
+            return slice_at(space, x, _named(point_id, "the newest feasible point"), point_id)
+    if observed:
+        point_id = ids[-1] if ids is not None else None
+        return slice_at(space, observed[-1][0], _named(point_id, "the newest point"), point_id)
+    return Slice(mid_range(space), "mid-range", _first_choices(space))
+
+
+def _named(point_id: int | None, what: str) -> str:
+    return what if point_id is None else f"point #{point_id}, {what}"
+
+
+FADE_REACH = 0.5  # a point this far (RMS, in units of each dimension's range) is faded most
+FADE_FLOOR = 0.15  # the opacity of a point far from the slice: still there, plainly not on it
+
+
+def closeness(
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    x: dict[str, Value],
+    held: Slice,
+    shown: set[str],
+    with_choices: bool,
+) -> float:
+    """How near `x` lies to the slice in the dimensions the picture does not show: 1 on it,
+    falling to 0 at FADE_REACH (root mean square over the hidden continuous components, each
+    scaled to its range, and, `with_choices`, 1 for each choice that differs)."""
+    gaps: list[float] = []
+    for lab, domain in space.items():
+        if isinstance(domain, ContinuousDomain):
+            v = x.get(lab)
+            if not isinstance(v, list):
+                continue
+            for i, (lo, hi) in enumerate(zip(domain.low, domain.high, strict=True)):
+                if f"{lab}[{i}]" in shown or i >= len(v):
+                    continue
+                span = (hi - lo) or 1.0
+                gaps.append((float(v[i]) - held.values[lab][i]) / span)
+        elif with_choices and lab in held.choices:
+            gaps.append(0.0 if x.get(lab) == held.choices[lab] else 1.0)
+    if not gaps:
+        return 1.0
+    rms = math.sqrt(sum(g * g for g in gaps) / len(gaps))
+    return max(0.0, 1.0 - rms / FADE_REACH)
+
+
+def opacity(near: float) -> float:
+    return FADE_FLOOR + (1.0 - FADE_FLOOR) * near
 
 
 def grid_points(
@@ -183,8 +243,10 @@ def render_heatmap_svg(
     n: int = 20,
     held: Slice | None = None,
     judge: Judge | None = None,
+    cols: int | None = None,
 ) -> str:
-    """Panels side by side (wrapping after four), one predict call for all of them. With no
+    """Panels side by side (wrapping after `cols`, by default four: one on a phone, so that
+    they stack rather than shrink), one predict call for all of them. With no
     `predict` (no surrogate yet) the cells are grey and only the stored points show. A panel
     without points is faded and says so: its colours are the model's extrapolation. A `judge`
     answers instead of `predict` with the model's uncertainty too: its unsure cells are hatched."""
@@ -207,14 +269,17 @@ def render_heatmap_svg(
     cell_w, cell_h = w / n, h / rows
     panel_w = _PAD_LEFT + w + _PANEL_GAP
     panel_h = _PAD_TOP + h + (_PAD_BOTTOM if dx is not None else _COUNT_PX)
-    cols = min(len(panels), 4 if dx is not None else 6)
-    width = max(cols * panel_w + 10, _LEGEND_W)
+    cols = max(1, min(len(panels), cols or (4 if dx is not None else 6)))
+    narrow = cols * panel_w + 10 < _LEGEND_W
+    width = cols * panel_w + 10 if narrow else max(cols * panel_w + 10, _LEGEND_W)
     legend_y = ((len(panels) + cols - 1) // cols) * panel_h + 8
     slice_lines = textwrap.wrap(
-        f"other dimensions held at {held.origin}: {_slice_text(held.values)}",
+        f"other dimensions held at {held.origin}"
+        + (" (ringed; a faded point lies far from it in them)" if held.point_id else "")
+        + f": {_slice_text(held.values)}",
         width=max(30, int((width - 20) / _SMALL_CHAR_W)),
     )
-    height = legend_y + 30 + 14 * len(slice_lines) + (_UNSURE_ROW if sds is not None else 0)
+    height = legend_y + 30 + 14 * len(slice_lines) + _legend_extra(sds is not None, narrow)
     out = [
         f'<svg class="cp-heatmap" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
@@ -248,7 +313,7 @@ def render_heatmap_svg(
             out.append(_unsure_overlay(ox, oy, cell_w, cell_h, n, sd_chunk))
         if dx is not None:
             out.append(_axes(ox, oy, w, h, dx, dy))
-            out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed))
+            out.append(_observed_marks(ox, oy, w, h, dx, dy, panel, observed, space, held))
         else:
             n_bad = mine.count(False)
             out.append(
@@ -256,7 +321,7 @@ def render_heatmap_svg(
                 f'fill="#111827">{len(mine) - n_bad} ✓ · {n_bad} ✗</text>'
             )
         out.append("</g>")
-    out.append(_legend(legend_y, slice_lines, sds is not None))
+    out.append(_legend(legend_y, slice_lines, sds is not None, narrow))
     out.append("</svg>")
     return "".join(out)
 
@@ -310,7 +375,18 @@ def _unsure_overlay(
     return "".join(runs)
 
 
-def _legend(y: float, slice_lines: list[str], with_unsure: bool) -> str:
+def _legend_extra(with_unsure: bool, narrow: bool) -> float:
+    """The legend's height beyond its scale row: the unsure row, and on a narrow picture the
+    markers' own row and the unsure text's second line."""
+    extra = _UNSURE_ROW if with_unsure else 0.0
+    if narrow:
+        extra += _UNSURE_ROW + (14.0 if with_unsure else 0.0)
+    return extra
+
+
+def _legend(y: float, slice_lines: list[str], with_unsure: bool, narrow: bool = False) -> str:
+    """The scale, the markers (beside it, or below it on a narrow picture), the unsure hatch
+    and the slice, each row below the last."""
     swatches = "".join(
         f'<rect x="{96 + 12 * k}" y="{y}" width="12" height="10" fill="{_colour(k / 10)}"/>'
         for k in range(11)
@@ -320,27 +396,38 @@ def _legend(y: float, slice_lines: list[str], with_unsure: bool) -> str:
         f'<tspan x="10" dy="{0 if k == 0 else 14}">{escape(line)}</tspan>'
         for k, line in enumerate(slice_lines)
     )
+    marks_y, marks_x = (y + _UNSURE_ROW, 14.0) if narrow else (y, 250.0)
     unsure = ""
+    below = marks_y
     if with_unsure:
-        row = y + _UNSURE_ROW
+        row = marks_y + _UNSURE_ROW
+        sd_note = f"(latent sd over {UNSURE_SD:.0%} of the prior's)"
+        text = (
+            f'<tspan x="40" dy="0">unsure: little data nearby</tspan>'
+            f'<tspan x="40" dy="14">{sd_note}</tspan>'
+            if narrow
+            else f"unsure: little data nearby {sd_note}"
+        )
         # The hatch over a mid-scale swatch, as it shows over the map.
         unsure = (
             f'<g class="cp-legend-unsure"><rect x="10" y="{row}" width="24" height="10" '
             f'fill="{_colour(0.5)}"/><rect x="10" y="{row}" width="24" height="10" '
             f'fill="url(#{HATCH_ID})" stroke="#374151" stroke-width="0.5"/>'
-            f'<text x="40" y="{row + 9}">unsure: little data nearby '
-            f"(latent sd over {UNSURE_SD:.0%} of the prior's)</text></g>"
+            f'<text x="40" y="{row + 9}">{text}</text></g>'
         )
-    slice_y = y + 28 + (_UNSURE_ROW if with_unsure else 0)
+        below = row + (14 if narrow else 0)
+    slice_y = below + 28
+    cross_x = marks_x + 100
     return (
         f'<g class="cp-legend" font-size="11" fill="#374151">'
         f'<text x="10" y="{y + 9}">P(feasible): 0</text>{swatches}'
         f'<text x="{96 + 12 * 11 + 4}" y="{y + 9}">1</text>'
-        f'<circle cx="{250}" cy="{y + 5}" r="3.5" fill="#ffffff" stroke="#111827"/>'
-        f'<text x="{258}" y="{y + 9}">feasible point</text>'
-        f'<path d="{_cross(350, y + 5)}" stroke="#ffffff" stroke-width="3.2"/>'
-        f'<path d="{_cross(350, y + 5)}" stroke="#111827" stroke-width="1.6"/>'
-        f'<text x="{358}" y="{y + 9}">infeasible point</text>'
+        f'<circle cx="{marks_x}" cy="{marks_y + 5}" r="3.5" fill="#ffffff" stroke="#111827"/>'
+        f'<text x="{marks_x + 8}" y="{marks_y + 9}">feasible point</text>'
+        f'<path class="cp-legend-cross" d="{_cross(cross_x, marks_y + 5)}" stroke="#ffffff" '
+        'stroke-width="3.2"/>'
+        f'<path d="{_cross(cross_x, marks_y + 5)}" stroke="#111827" stroke-width="1.6"/>'
+        f'<text x="{cross_x + 8}" y="{marks_y + 9}">infeasible point</text>'
         f'{unsure}<text class="cp-slice" x="10" y="{slice_y}">{lines}</text></g>'
     )
 
@@ -386,30 +473,56 @@ def _observed_marks(
     dy: Dim | None,
     panel: dict[str, str],
     observed: Sequence[tuple[dict[str, Value], bool]],
+    space: dict[str, CategoricalDomain | ContinuousDomain],
+    held: Slice,
 ) -> str:
+    """The stored points of this panel, each faded by its distance from the slice in the
+    dimensions off the axes, and a ring where the held point lies."""
+    shown = {dx.name} | ({dy.name} if dy is not None else set())
+
+    def at(x: dict[str, Value]) -> tuple[float, float] | None:
+        vx = x.get(dx.label)
+        if not isinstance(vx, list) or len(vx) <= dx.index:
+            return None
+        px = ox + (vx[dx.index] - dx.low) / ((dx.high - dx.low) or 1.0) * w
+        if dy is None:
+            return px, oy + h / 2.0
+        vy = x.get(dy.label)
+        if not isinstance(vy, list) or len(vy) <= dy.index:
+            return None
+        return px, oy + (dy.high - vy[dy.index]) / ((dy.high - dy.low) or 1.0) * h
+
     marks: list[str] = []
     for x, feasible in observed:
         if any(x.get(lab) != choice for lab, choice in panel.items()):
             continue
-        vx = x.get(dx.label)
-        if not isinstance(vx, list) or len(vx) <= dx.index:
+        spot = at(x)
+        if spot is None:
             continue
-        px = ox + (vx[dx.index] - dx.low) / (dx.high - dx.low) * w
-        py = oy + h / 2.0
-        if dy is not None:
-            vy = x.get(dy.label)
-            if not isinstance(vy, list) or len(vy) <= dy.index:
-                continue
-            py = oy + (dy.high - vy[dy.index]) / (dy.high - dy.low) * h
+        px, py = spot
+        near = closeness(space, x, held, shown, with_choices=False)
+        fade = f'data-closeness="{near:.2f}" opacity="{opacity(near):.2f}"'
         if feasible:
             marks.append(
-                f'<circle class="cp-observed" data-feasible="1" cx="{px:.1f}" cy="{py:.1f}" '
-                'r="3.2" fill="#ffffff" stroke="#111827" stroke-width="1.2"/>'
+                f'<circle class="cp-observed" data-feasible="1" {fade} cx="{px:.1f}" '
+                f'cy="{py:.1f}" r="3.2" fill="#ffffff" stroke="#111827" stroke-width="1.2"/>'
             )
         else:
             cross = _cross(px, py, 3.2)
             marks.append(
-                f'<g class="cp-observed" data-feasible="0"><path d="{cross}" stroke="#ffffff" '
-                f'stroke-width="3.2"/><path d="{cross}" stroke="#111827" stroke-width="1.6"/></g>'
+                f'<g class="cp-observed" data-feasible="0" {fade}><path d="{cross}" '
+                f'stroke="#ffffff" stroke-width="3.2"/><path d="{cross}" stroke="#111827" '
+                'stroke-width="1.6"/></g>'
+            )
+    if held.point_id is not None and all(held.choices.get(k) == v for k, v in panel.items()):
+        spot = at({**held.values, **held.choices})
+        if spot is not None:
+            marks.append(
+                f'<circle class="cp-held" data-point-id="{held.point_id}" cx="{spot[0]:.1f}" '
+                f'cy="{spot[1]:.1f}" r="7" fill="none" stroke="{HELD_COLOUR}" stroke-width="2.2">'
+                f"<title>the held point #{held.point_id}</title></circle>"
             )
     return "".join(marks)
+
+
+HELD_COLOUR = "#d55e00"  # Okabe-Ito vermillion: apart from cividis' blues and yellows

@@ -1,8 +1,10 @@
 """The history view: points stored over time and the feasible share, one line per series
 (the tasks of a type, or the types of a knowledge base), as SVG.
 
-Two panels over one time axis: the cumulative number of points, and each stretch's feasible
-share (a marker only where the stretch holds points of that series, sized by how many). The
+Two panels over one axis (storage time with idle pauses left out and marked, the points in
+storage order, or the runs in the order they started): the cumulative number of points, and
+each stretch's feasible share (a marker only where the stretch holds points of that series,
+sized by how many, its values on hover). The
 colours are Okabe-Ito's, told apart in every common colour-vision deficiency, and each series
 also has its own marker shape.
 """
@@ -40,16 +42,22 @@ def _marker(shape: str, x: float, y: float, r: float, colour: str) -> str:
     return f'<polygon points="{pts}" fill="{colour}"/>'
 
 
-def render_history_svg(history: History, what: str) -> str:
-    """`what` names the series in the legend ("task", "type")."""
-    legend_rows = max(1, (len(history.series) + 2) // 3)
-    width = _PAD_L + _W + 16
+NARROW_W = 290.0  # the plot's width on a phone (one column): its text stays full size
+
+
+def render_history_svg(history: History, what: str, narrow: bool = False) -> str:
+    """`what` names the series in the legend ("task", "type"); `narrow` draws it for a phone,
+    with a narrower plot and one legend entry a row."""
+    plot_w = NARROW_W if narrow else _W
+    per_row = 1 if narrow else 3
+    legend_rows = max(1, (len(history.series) + per_row - 1) // per_row)
+    width = _PAD_L + plot_w + 16
     top2 = _PAD_T + _H + _GAP
-    height = top2 + _H + 30 + 16 * legend_rows
+    height = top2 + _H + 30 + 16 * legend_rows + (13 if narrow else 0)
     out = [
         f'<svg class="cp-history" xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" '
         f'height="{height:.0f}" viewBox="0 0 {width:.0f} {height:.0f}" role="img" '
-        f'aria-label="points and feasible share over time, per {escape(what)}" '
+        f'aria-label="points and feasible share per {escape(what)}" '
         f'font-family="{FONT}">'
     ]
     if not history.buckets:
@@ -64,13 +72,13 @@ def render_history_svg(history: History, what: str) -> str:
             total += b.n[name]
             cumulative[name].append(total)
     peak = max(max(v) for v in cumulative.values()) or 1
-    step = _W / n
+    step = plot_w / n
 
     def x_at(k: float) -> float:
         return _PAD_L + step * (k + 0.5)
 
-    out.append(_axes(_PAD_T, "points so far", str(peak), "0"))
-    out.append(_axes(top2, "feasible share", "100%", "0%"))
+    out.append(_axes(_PAD_T, "points so far", str(peak), "0", plot_w))
+    out.append(_axes(top2, "feasible share", "100%", "0%", plot_w))
     for i, name in enumerate(history.series):
         colour, shape = PALETTE[i % len(PALETTE)], SHAPES[i % len(SHAPES)]
         pts = " ".join(
@@ -86,23 +94,40 @@ def render_history_svg(history: History, what: str) -> str:
             if b.n[name]:
                 share = b.n_feasible[name] / b.n[name]
                 r = 2.0 + min(3.0, b.n[name] ** 0.5 / 2)
-                out.append(_marker(shape, x_at(k), top2 + _H * (1 - share), r, colour))
+                tip = (
+                    f"{what} {name}, {b.label}: {b.n[name]} points, {b.n_feasible[name]} "
+                    f"feasible ({share:.0%}); {cumulative[name][k]} so far"
+                )
+                out.append(
+                    f'<g class="cp-history-mark" data-n="{b.n[name]}">'
+                    + _marker(shape, x_at(k), top2 + _H * (1 - share), r, colour)
+                    + f"<title>{escape(tip)}</title></g>"
+                )
         out.append("</g>")
-    start, end = buckets[0].start, buckets[-1].end
-    # Seconds where the whole history is shorter than an hour; the end's date only if it differs.
-    clock = "%H:%M:%S" if (end - start).total_seconds() < 3600 else "%H:%M"
-    end_format = clock if end.date() == start.date() else "%Y-%m-%d " + clock
+    for k, idle_s in history.gaps:
+        gx = _PAD_L + step * k
+        out.append(
+            f'<g class="cp-history-gap"><line x1="{gx:.1f}" y1="{_PAD_T}" x2="{gx:.1f}" '
+            f'y2="{top2 + _H}" stroke="{_MUTED}" stroke-width="1" stroke-dasharray="2 3"/>'
+            f'<rect x="{gx - 3:.1f}" y="{_PAD_T}" width="6" height="{top2 + _H - _PAD_T}" '
+            f'fill="transparent"><title>idle {_duration(idle_s)}, left out of the axis'
+            "</title></rect></g>"
+        )
+    first, last = _ends(history)
+    # Narrow: the two ends on two lines, each from the left.
+    last_x, last_dy, anchor = (_PAD_L, 13, "start") if narrow else (_PAD_L + plot_w, 0, "end")
     out.append(
-        f'<text x="{_PAD_L:.0f}" y="{top2 + _H + 14:.0f}" font-size="10" fill="{_MUTED}">'
-        f"{escape(start.strftime('%Y-%m-%d ' + clock))}</text>"
-        f'<text x="{_PAD_L + _W:.0f}" y="{top2 + _H + 14:.0f}" font-size="10" '
-        f'text-anchor="end" fill="{_MUTED}">{escape(end.strftime(end_format))} (UTC)</text>'
+        f'<text class="cp-history-axis" x="{_PAD_L:.0f}" y="{top2 + _H + 14:.0f}" '
+        f'font-size="10" fill="{_MUTED}">{escape(first)}</text>'
+        f'<text x="{last_x:.0f}" y="{top2 + _H + 14 + last_dy:.0f}" font-size="10" '
+        f'text-anchor="{anchor}" fill="{_MUTED}">{escape(last)}</text>'
     )
+    legend_top = top2 + _H + 34 + (13 if narrow else 0)
     for i, name in enumerate(history.series):
-        x = _PAD_L + (i % 3) * (_W / 3)
-        y = top2 + _H + 34 + 16 * (i // 3)
+        x = _PAD_L + (i % per_row) * (plot_w / per_row)
+        y = legend_top + 16 * (i // per_row)
         label = f"{what} {name} ({history.totals.get(name, 0)})"
-        room = int(_W / 3 / 6.2) - 2
+        room = int(plot_w / per_row / 6.2) - 2
         label = label if len(label) <= room else label[: room - 1] + "…"
         out.append(
             _marker(SHAPES[i % len(SHAPES)], x + 4, y - 4, 4, PALETTE[i % len(PALETTE)])
@@ -113,9 +138,9 @@ def render_history_svg(history: History, what: str) -> str:
     return "".join(out)
 
 
-def _axes(top: float, title: str, high: str, low: str) -> str:
+def _axes(top: float, title: str, high: str, low: str, plot_w: float) -> str:
     return (
-        f'<rect x="{_PAD_L}" y="{top}" width="{_W}" height="{_H}" fill="none" '
+        f'<rect x="{_PAD_L}" y="{top}" width="{plot_w}" height="{_H}" fill="none" '
         f'stroke="{_MUTED}" stroke-width="0.8"/>'
         f'<text x="{_PAD_L}" y="{top - 6}" font-size="11" fill="{_INK}">{escape(title)}</text>'
         f'<text x="{_PAD_L - 4}" y="{top + 9}" font-size="10" text-anchor="end" '
@@ -123,3 +148,29 @@ def _axes(top: float, title: str, high: str, low: str) -> str:
         f'<text x="{_PAD_L - 4}" y="{top + _H}" font-size="10" text-anchor="end" '
         f'fill="{_MUTED}">{escape(low)}</text>'
     )
+
+
+AXIS_NAMES = {"time": "time", "point": "points in storage order", "run": "runs in start order"}
+
+
+def _ends(history: History) -> tuple[str, str]:
+    """What the axis's two ends say: times (idle stretches left out, counted), or the first
+    and last bucket's names."""
+    buckets = history.buckets
+    if history.axis != "time":
+        return buckets[0].label, f"{buckets[-1].label} ({AXIS_NAMES[history.axis]})"
+    start, end = buckets[0].start, buckets[-1].end
+    clock = "%H:%M:%S" if (end - start).total_seconds() < 3600 else "%H:%M"
+    end_format = clock if end.date() == start.date() else "%Y-%m-%d " + clock
+    left_out = ""
+    if history.gaps:
+        idle = sum(s for _, s in history.gaps)
+        left_out = f", idle {_duration(idle)} left out"
+    return start.strftime("%Y-%m-%d " + clock), f"{end.strftime(end_format)} UTC{left_out}"
+
+
+def _duration(seconds: float) -> str:
+    for unit, size in (("d", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit}"
+    return f"{seconds:.0f} s"

@@ -33,6 +33,8 @@ router = APIRouter(include_in_schema=False)
 
 DimName = Annotated[str | None, Query(max_length=200)]
 GridSize = Annotated[int, Query(ge=4, le=40)]
+# Panels a row: the page asks for as many as its width holds, so that a phone stacks them.
+Cols = Annotated[int | None, Query(ge=1, le=12)]
 KbName = Annotated[str | None, Query(max_length=64)]
 PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
 
@@ -40,12 +42,14 @@ PointId = Annotated[int | None, Query(ge=0, le=2**63 - 1)]
 def table_query(
     feasible: Annotated[Literal["", "true", "false"], Query(description="'' for both labels")] = "",
     task: Annotated[str, Query(max_length=128, description="'' for every task")] = "",
+    run: Annotated[str, Query(max_length=128, description="'' for every run")] = "",
     order: Literal["newest", "oldest"] = "newest",
     after: PointId = None,
     before: PointId = None,
     limit: Annotated[int, Query(ge=1, le=500)] = views.POINTS_PER_PAGE,
     x: DimName = None,
     y: DimName = None,
+    hold: Annotated[PointId, Query(description="the point the pictures go through")] = None,
 ) -> views.TableQuery:
     """The points table's query string: unknown values are a 422, never silently ignored."""
     if after is not None and before is not None:
@@ -53,11 +57,13 @@ def table_query(
     return views.TableQuery(
         feasible=None if feasible == "" else feasible == "true",
         task=task or None,
+        run=run or None,
         newest_first=order == "newest",
         after=after,
         before=before,
         limit=limit,
         axes=(x, y),
+        hold=hold,
     )
 
 
@@ -93,12 +99,6 @@ def _state(request: Request) -> tuple[Any, Any]:
     return request.app.state.store, request.app.state.hooks
 
 
-def _not_found(request: Request, exc: NotFound) -> HTMLResponse:
-    return templates.TemplateResponse(
-        request, "error.html", {"message": exc.detail}, status_code=404
-    )
-
-
 Offset = Annotated[int, Query(ge=0, le=10**9)]
 TypesLimit = Annotated[int, Query(ge=1, le=500)]
 
@@ -111,10 +111,7 @@ def index(
     limit: TypesLimit = views.TYPES_PER_PAGE,
 ) -> Response:
     store, _ = _state(request)
-    try:
-        data = views.overview(store, kb, offset=offset, limit=limit)
-    except NotFound as exc:
-        return _not_found(request, exc)
+    data = views.overview(store, kb, offset=offset, limit=limit)
     history = ""
     if data["kb"] is not None:
         history = Markup(figures.kb_history(store, data["kb"]))
@@ -142,23 +139,22 @@ def type_page(
     table: Table,
 ) -> Response:
     store, hooks = _state(request)
-    x, y = table.axes
-    try:
-        data = views.type_page(store, hooks, kb, type_id, x=x, y=y, table=table)
-    except NotFound as exc:
-        return _not_found(request, exc)
+    data = views.type_page(store, hooks, kb, type_id, table=table)
     # Both SVGs are ours, every text in them escaped by the renderers.
     graph = Markup(render_svg(data["detail"].graph))
-    inputs = _inputs(request, kb, type_id)
+    inputs = _inputs(request, kb, type_id, table.hold)
     heatmap = Markup(figures.heatmap(inputs, data["x_dim"], data["y_dim"], 20))
     slices = Markup(figures.slices(inputs))
+    parallel = Markup(figures.parallel(inputs))
     history = Markup(figures.type_history(store, kb, type_id))
     context = {
         **data,
         "graph_svg": graph,
         "heatmap_svg": heatmap,
         "slices_svg": slices,
+        "parallel_svg": parallel,
         "history_svg": history,
+        "held": inputs.held,
         "figure_key": _figure_key(data),
         "fragments": _fragments("_type.html", **data),
     }
@@ -174,6 +170,28 @@ def type_json(request: Request, kb: str, type_id: str, table: Table) -> JSONResp
     return JSONResponse({**data, "figure_key": _figure_key(data), "fragments": fragments})
 
 
+@router.get("/ui/compare", response_class=HTMLResponse)
+def compare_page(
+    request: Request,
+    a: Annotated[str, Query(max_length=64, description="the first knowledge base")],
+    b: Annotated[str, Query(max_length=64, description="the second knowledge base")],
+) -> Response:
+    """Two knowledge bases' types side by side."""
+    store, _ = _state(request)
+    return templates.TemplateResponse(request, "compare.html", views.compare(store, a, b))
+
+
+@router.get("/ui/kbs/{kb}/points/{point_id}", response_class=HTMLResponse)
+def point_page(request: Request, kb: str, point_id: int) -> Response:
+    """A page per point: its values and provenance, the model's verdict at it, and a link to
+    its type's pictures drawn through it."""
+    store, hooks = _state(request)
+    state = request.app.state
+    judge = getattr(state, "predict_with_uncertainty", None)
+    data = views.point_page(store, hooks, kb, point_id, judge)
+    return templates.TemplateResponse(request, "point.html", data)
+
+
 @router.get("/ui/kbs/{kb}/types/{type_id}/graph.svg")
 def graph_svg(request: Request, kb: str, type_id: str) -> Response:
     store, _ = _state(request)
@@ -182,26 +200,53 @@ def graph_svg(request: Request, kb: str, type_id: str) -> Response:
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/heatmap.svg")
 def heatmap_svg(
-    request: Request, kb: str, type_id: str, x: DimName = None, y: DimName = None, n: GridSize = 20
+    request: Request,
+    kb: str,
+    type_id: str,
+    x: DimName = None,
+    y: DimName = None,
+    n: GridSize = 20,
+    hold: PointId = None,
+    cols: Cols = None,
 ) -> Response:
-    return Response(figures.heatmap(_inputs(request, kb, type_id), x, y, n), media_type=SVG)
+    inputs = _inputs(request, kb, type_id, hold)
+    return Response(figures.heatmap(inputs, x, y, n, cols), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/slices.svg")
-def slices_svg(request: Request, kb: str, type_id: str) -> Response:
-    return Response(figures.slices(_inputs(request, kb, type_id)), media_type=SVG)
+def slices_svg(
+    request: Request, kb: str, type_id: str, hold: PointId = None, cols: Cols = None
+) -> Response:
+    return Response(figures.slices(_inputs(request, kb, type_id, hold), cols), media_type=SVG)
+
+
+@router.get("/ui/kbs/{kb}/types/{type_id}/parallel.svg")
+def parallel_svg(request: Request, kb: str, type_id: str, cols: Cols = None) -> Response:
+    """Parallel coordinates of the type's points; `cols`: the axes the page's width holds."""
+    return Response(figures.parallel(_inputs(request, kb, type_id), cols), media_type=SVG)
+
+
+HistoryAxis = Annotated[
+    Literal["time", "point", "run"],
+    Query(description="time (idle pauses left out), point (storage order) or run"),
+]
 
 
 @router.get("/ui/kbs/{kb}/types/{type_id}/history.svg")
-def type_history_svg(request: Request, kb: str, type_id: str) -> Response:
+def type_history_svg(
+    request: Request, kb: str, type_id: str, axis: HistoryAxis = "time", cols: Cols = None
+) -> Response:
     store, _ = _state(request)
-    return Response(figures.type_history(store, kb, type_id), media_type=SVG)
+    svg = figures.type_history(store, kb, type_id, axis, cols or 2)
+    return Response(svg, media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/history.svg")
-def kb_history_svg(request: Request, kb: str) -> Response:
+def kb_history_svg(
+    request: Request, kb: str, axis: HistoryAxis = "time", cols: Cols = None
+) -> Response:
     store, _ = _state(request)
-    return Response(figures.kb_history(store, kb), media_type=SVG)
+    return Response(figures.kb_history(store, kb, axis, cols or 2), media_type=SVG)
 
 
 @router.get("/ui/kbs/{kb}/export.zip")
@@ -227,12 +272,12 @@ def static(name: str) -> Response:
     )
 
 
-def _inputs(request: Request, kb: str, type_id: str) -> figures.Inputs:
+def _inputs(request: Request, kb: str, type_id: str, hold: int | None = None) -> figures.Inputs:
     store, hooks = _state(request)
     state = request.app.state
     predict = getattr(state, "predict", None)
     judge = getattr(state, "predict_with_uncertainty", None) if predict is not None else None
-    return figures.inputs(store, hooks, predict, kb, type_id, judge)
+    return figures.inputs(store, hooks, predict, kb, type_id, judge, hold)
 
 
 def _figure_key(data: dict[str, Any]) -> str:

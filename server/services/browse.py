@@ -4,34 +4,21 @@ number of queries; and the points' history. Read-only."""
 
 from __future__ import annotations
 
+import itertools
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import Select, func, select
+from sqlalchemy import case, func, select
 
 from contract.models import PointOut, TypeSummary
 from server.db import Store
-from server.orm import PointRow, TypeRow
+from server.errors import NotFound
+from server.orm import KnowledgeBaseRow, PointRow, TypeRow
 from server.services.kbs import kb_id
-from server.services.points import point_out
+from server.services.points import PointFilter, point_out
 from server.services.types import summary, type_row
-
-
-@dataclass(frozen=True)
-class PointFilter:
-    """Which points to show: a label (None: both) and a task name (None: every task)."""
-
-    feasible: bool | None = None
-    task: str | None = None
-
-    def apply(self, query: Select[Any]) -> Select[Any]:
-        if self.feasible is not None:
-            query = query.where(PointRow.feasible.is_(self.feasible))
-        if self.task is not None:
-            query = query.where(PointRow.task == self.task)
-        return query
 
 
 @dataclass(frozen=True)
@@ -89,6 +76,92 @@ def browse_points(
     )
 
 
+def one_point(store: Store, kb: str, type_id: str, point_id: int) -> PointOut:
+    """A point of this type by its id (NotFound when the type has no such point)."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        row = session.scalar(
+            select(PointRow).where(PointRow.id == point_id, PointRow.type_pk == type_pk)
+        )
+        if row is None:
+            raise NotFound(f"type {type_id} has no point #{point_id}")
+        return point_out(row, type_id)
+
+
+@dataclass(frozen=True)
+class TaskShare:
+    """One task's part of a type: its points, how many feasible, when they were stored."""
+
+    task: str
+    n: int
+    n_feasible: int
+    first: datetime
+    last: datetime
+
+
+def per_task(store: Store, kb: str, type_id: str) -> list[TaskShare]:
+    """The type's points split by task, most points first: one type compared across tasks."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        rows = session.execute(
+            select(
+                PointRow.task,
+                func.count(PointRow.id),
+                func.sum(case((PointRow.feasible.is_(True), 1), else_=0)),
+                func.min(PointRow.created_at),
+                func.max(PointRow.created_at),
+            )
+            .where(PointRow.type_pk == type_pk)
+            .group_by(PointRow.task)
+        ).all()
+    shares = [
+        TaskShare(task or NO_TASK, int(n), int(ok or 0), first, last)
+        for task, n, ok, first, last in rows
+    ]
+    return sorted(shares, key=lambda s: (-s.n, s.task))
+
+
+def most_recent_kb(store: Store) -> str | None:
+    """The knowledge base whose types were updated last (None when no base has a type)."""
+    with store.transaction() as session:
+        found = session.execute(
+            select(KnowledgeBaseRow.name)
+            .join(TypeRow, TypeRow.kb_id == KnowledgeBaseRow.id)
+            .order_by(TypeRow.updated_at.desc(), TypeRow.id.desc())
+            .limit(1)
+        ).first()
+    return None if found is None else str(found[0])
+
+
+def point_in_kb(store: Store, kb: str, point_id: int) -> PointOut:
+    """A point of the knowledge base by its id, whatever its type (NotFound if none)."""
+    with store.transaction() as session:
+        kb_pk = kb_id(session, kb)
+        found = session.execute(
+            select(PointRow, TypeRow.type_id)
+            .join(TypeRow, TypeRow.id == PointRow.type_pk)
+            .where(PointRow.id == point_id, PointRow.kb_id == kb_pk)
+        ).first()
+        if found is None:
+            raise NotFound(f"knowledge base {kb!r} has no point #{point_id}")
+        return point_out(found[0], found[1])
+
+
+def newest_points(
+    store: Store, kb: str, type_id: str, limit: int
+) -> list[tuple[int, dict[str, Any], bool]]:
+    """The type's newest `limit` points as (id, decision values, label), oldest first."""
+    with store.transaction() as session:
+        type_pk = type_row(session, kb, type_id).id
+        rows = session.execute(
+            select(PointRow.id, PointRow.x, PointRow.feasible)
+            .where(PointRow.type_pk == type_pk)
+            .order_by(PointRow.id.desc())
+            .limit(limit)
+        ).all()
+    return [(int(pid), x, bool(ok)) for pid, x, ok in reversed(rows)]
+
+
 @dataclass(frozen=True)
 class TypeRowView:
     summary: TypeSummary
@@ -144,10 +217,12 @@ def types_page(store: Store, kb: str, *, offset: int, limit: int, top: int = 3) 
 
 @dataclass
 class HistoryBucket:
-    """Points stored in one stretch of time, counted per series (a task, or a type)."""
+    """Points stored in one stretch (of time, of the points in storage order, or one or more
+    runs), counted per series (a task, or a type); `label` names the stretch."""
 
     start: datetime
     end: datetime
+    label: str = ""
     n: Counter[str] = field(default_factory=Counter)
     n_feasible: Counter[str] = field(default_factory=Counter)
 
@@ -157,24 +232,41 @@ class History:
     buckets: list[HistoryBucket]
     series: list[str]  # most points first
     totals: dict[str, int]
+    axis: str = "time"
+    # Idle stretches left out of a time axis: (the bucket they come before, their length in s).
+    gaps: list[tuple[int, float]] = field(default_factory=list)
 
 
 NO_TASK = "(no task)"
+NO_RUN = "(no run)"
+AXES = ("time", "point", "run")
+IDLE_FACTOR = 20.0  # a pause this many times the median gap between points is idle...
+IDLE_MIN_S = 60.0  # ...and at least this long
 
 
 def history(
-    store: Store, kb: str, type_id: str | None = None, *, buckets: int = 30, max_series: int = 6
+    store: Store,
+    kb: str,
+    type_id: str | None = None,
+    *,
+    axis: str = "time",
+    buckets: int = 30,
+    max_series: int = 6,
 ) -> History:
-    """Points and feasible points per stretch of storage time: for one type split by task,
-    for a whole knowledge base split by type (failure and short id). Series past
-    `max_series` are summed into `other`."""
+    """Points and feasible points per stretch, for one type split by task, for a whole
+    knowledge base split by type (failure and short id); series past `max_series` are summed
+    into `other`. The stretches: of storage time with idle pauses left out (`time`), of the
+    points in storage order (`point`), or runs in the order they started (`run`)."""
     with store.transaction() as session:
         if type_id is not None:
             type_pk = type_row(session, kb, type_id).id
-            query = select(PointRow.created_at, PointRow.feasible, PointRow.task).where(
-                PointRow.type_pk == type_pk
-            )
-            rows = [(t, ok, task or NO_TASK) for t, ok, task in session.execute(query)]
+            of_type = select(
+                PointRow.id, PointRow.created_at, PointRow.feasible, PointRow.run, PointRow.task
+            ).where(PointRow.type_pk == type_pk)
+            rows = [
+                (pid, t, ok, run, task or NO_TASK)
+                for pid, t, ok, run, task in session.execute(of_type.order_by(PointRow.id))
+            ]
         else:
             kb_pk = kb_id(session, kb)
             names = {
@@ -185,30 +277,101 @@ def history(
                     )
                 )
             }
-            by_type = select(PointRow.created_at, PointRow.feasible, PointRow.type_pk).where(
-                PointRow.kb_id == kb_pk
-            )
-            rows = [(t, ok, names[pk]) for t, ok, pk in session.execute(by_type)]
-    totals = Counter(name for _, _, name in rows)
+            of_kb = select(
+                PointRow.id, PointRow.created_at, PointRow.feasible, PointRow.run, PointRow.type_pk
+            ).where(PointRow.kb_id == kb_pk)
+            rows = [
+                (pid, t, ok, run, names[pk])
+                for pid, t, ok, run, pk in session.execute(of_kb.order_by(PointRow.id))
+            ]
+    totals = Counter(row[4] for row in rows)
     kept = [name for name, _ in totals.most_common(max_series)]
     if len(totals) > max_series:
         kept = kept[: max_series - 1]
     series = [*kept, "other"] if len(totals) > len(kept) else kept
     if not rows:
-        return History([], [], {})
-    times = [t for t, _, _ in rows]
-    lo, hi = min(times), max(times)
-    span = max((hi - lo).total_seconds(), 1e-6)
-    out = [
-        HistoryBucket(lo + (hi - lo) * (k / buckets), lo + (hi - lo) * ((k + 1) / buckets))
-        for k in range(buckets)
-    ]
-    for t, ok, name in rows:
-        k = min(int((t - lo).total_seconds() / span * buckets), buckets - 1)
+        return History([], [], {}, axis)
+    rows.sort(key=lambda row: (row[1], row[0]))
+    gaps: list[tuple[int, float]] = []
+    if axis == "point":
+        out, where = _by_point(rows, buckets)
+    elif axis == "run":
+        out, where = _by_run(rows, buckets)
+    else:
+        out, where, gaps = _by_active_time(rows, buckets)
+    for k, (_, _, ok, _, name) in enumerate(rows):
         key = name if name in kept else "other"
-        out[k].n[key] += 1
-        out[k].n_feasible[key] += 1 if ok else 0
+        out[where[k]].n[key] += 1
+        out[where[k]].n_feasible[key] += 1 if ok else 0
     merged = Counter({name: totals[name] for name in kept})
     if "other" in series:
         merged["other"] = sum(n for name, n in totals.items() if name not in kept)
-    return History(out, series, dict(merged))
+    return History(out, series, dict(merged), axis, gaps)
+
+
+Row = tuple[int, datetime, bool, str | None, str]
+Buckets = tuple[list[HistoryBucket], list[int]]  # the buckets, and each row's bucket
+
+
+def _by_point(rows: list[Row], buckets: int) -> Buckets:
+    """Equal shares of the points in storage order."""
+    n = len(rows)
+    count = min(buckets, n)
+    out = []
+    for k in range(count):
+        lo, hi = k * n // count, (k + 1) * n // count - 1
+        out.append(HistoryBucket(rows[lo][1], rows[hi][1], f"points {lo + 1}-{hi + 1}"))
+    return out, [k * count // n for k in range(n)]
+
+
+def _by_run(rows: list[Row], buckets: int) -> Buckets:
+    """A bucket per run in the order the runs started (consecutive runs share one when there
+    are more than `buckets`)."""
+    order: dict[str, int] = {}
+    for row in rows:
+        order.setdefault(row[3] or NO_RUN, len(order))
+    names = list(order)
+    per = max(1, -(-len(names) // buckets))
+    out = []
+    for k in range(0, len(names), per):
+        group = names[k : k + per]
+        label = f"run {group[0]}" if len(group) == 1 else f"runs {k + 1}-{k + len(group)}"
+        mine = [row[1] for row in rows if order[row[3] or NO_RUN] // per == k // per]
+        out.append(HistoryBucket(min(mine), max(mine), label))
+    return out, [order[row[3] or NO_RUN] // per for row in rows]
+
+
+def _by_active_time(
+    rows: list[Row], buckets: int
+) -> tuple[list[HistoryBucket], list[int], list[tuple[int, float]]]:
+    """Buckets over the time points were arriving: a pause longer than IDLE_FACTOR times the
+    median gap (and IDLE_MIN_S) is left out, and reported as a gap before its bucket."""
+    times = [row[1] for row in rows]
+    steps = [(b - a).total_seconds() for a, b in itertools.pairwise(times)]
+    positive = sorted(x for x in steps if x > 0)
+    median = positive[len(positive) // 2] if positive else 0.0
+    idle = max(IDLE_MIN_S, IDLE_FACTOR * median)
+    active = [0.0]
+    pauses: list[tuple[int, float]] = []  # (the point after the pause, its length)
+    for k, step in enumerate(steps):
+        if step > idle:
+            pauses.append((k + 1, step))
+            active.append(active[-1])
+        else:
+            active.append(active[-1] + step)
+    span = max(active[-1], 1e-6)
+    where = [min(int(a / span * buckets), buckets - 1) for a in active]
+    out = []
+    for k in range(buckets):
+        inside = [times[i] for i, b in enumerate(where) if b == k]
+        start, end = (min(inside), max(inside)) if inside else (times[0], times[0])
+        out.append(HistoryBucket(start, end, _clock(start, end)))
+    return out, where, [(where[i], length) for i, length in pauses]
+
+
+def _clock(start: datetime, end: datetime) -> str:
+    return (
+        start.strftime("%Y-%m-%d %H:%M:%S")
+        + ("" if end == start else "-" + end.strftime("%H:%M:%S"))
+        + " UTC"
+    )

@@ -7,17 +7,16 @@ even one racing in from another process, stores nothing and gets the original an
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import json
 import math
 from collections import defaultdict
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any, cast
 
-from sqlalchemy import Table, bindparam, func, insert, or_, select, update
+from sqlalchemy import ColumnElement, Select, Table, bindparam, func, insert, or_, select, update
 from sqlalchemy.orm import Session
 
 from contract.models import (
@@ -322,6 +321,40 @@ def point_out(row: PointRow, type_id: str) -> PointOut:
     )
 
 
+@dataclass(frozen=True)
+class PointFilter:
+    """Which of a type's points to read: a label, a task, a run, a worker (None: any) and a
+    storage time range (`since` inclusive, `until` exclusive)."""
+
+    feasible: bool | None = None
+    task: str | None = None
+    run: str | None = None
+    worker: str | None = None
+    since: datetime | None = None
+    until: datetime | None = None
+
+    def conditions(self) -> list[ColumnElement[bool]]:
+        """The WHERE conditions of this filter (none: every point)."""
+        out: list[ColumnElement[bool]] = []
+        if self.feasible is not None:
+            out.append(PointRow.feasible.is_(self.feasible))
+        for column, value in (
+            (PointRow.task, self.task),
+            (PointRow.run, self.run),
+            (PointRow.worker, self.worker),
+        ):
+            if value is not None:
+                out.append(column == value)
+        if self.since is not None:
+            out.append(PointRow.created_at >= self.since)
+        if self.until is not None:
+            out.append(PointRow.created_at < self.until)
+        return out
+
+    def apply(self, query: Select[Any]) -> Select[Any]:
+        return query.where(*self.conditions())
+
+
 def parse_cursor(cursor: str | None) -> int | None:
     """A point id this server gave out as `next_cursor`: ASCII digits within 64 bits."""
     if cursor is None or cursor == "":
@@ -332,13 +365,20 @@ def parse_cursor(cursor: str | None) -> int | None:
 
 
 def list_points(
-    store: Store, kb: str, type_id: str, *, limit: int, cursor: str | None
+    store: Store,
+    kb: str,
+    type_id: str,
+    *,
+    limit: int,
+    cursor: str | None,
+    where: PointFilter | None = None,
 ) -> PointsPage:
-    """A page of a type's points in insertion order; `next_cursor` is None on the last page."""
+    """A page of a type's points in insertion order, those `where` admits; `next_cursor` is
+    None on the last page."""
     after = parse_cursor(cursor)
     with store.transaction() as session:
         row = type_row(session, kb, type_id)
-        query = select(PointRow).where(PointRow.type_pk == row.id)
+        query = (where or PointFilter()).apply(select(PointRow).where(PointRow.type_pk == row.id))
         if after is not None:
             query = query.where(PointRow.id > after)
         points = list(session.scalars(query.order_by(PointRow.id).limit(limit + 1)))
@@ -393,53 +433,3 @@ def _live_point(row: Any, type_ids: dict[int, str]) -> LivePoint:
     return LivePoint(
         point_id=pid, type_id=type_ids[pk], x=x, feasible=feasible, run=run, rollout=rollout
     )
-
-
-def csv_header(space: dict[str, Any]) -> list[str]:
-    """One column per categorical decision, one per dimension of a continuous one."""
-    columns = ["point_id", "feasible"]
-    for label, domain in space.items():
-        if domain["kind"] == "continuous":
-            columns.extend(f"{label}[{i}]" for i in range(len(domain["low"])))
-        else:
-            columns.append(label)
-    return [*columns, *PROVENANCE, "key", "created_at"]
-
-
-def iter_csv(store: Store, kb: str, type_id: str, *, page_size: int = 1000) -> Iterator[str]:
-    """The type's table as CSV, read page by page (checks kb and type before the first line)."""
-    with store.transaction() as session:
-        space = type_row(session, kb, type_id).space
-    return _csv_lines(store, kb, type_id, space, page_size)
-
-
-def _csv_lines(
-    store: Store, kb: str, type_id: str, space: dict[str, Any], page_size: int
-) -> Iterator[str]:
-    buffer = io.StringIO()
-    writer = csv.writer(buffer)
-
-    def flush() -> str:
-        text = buffer.getvalue()
-        buffer.seek(0)
-        buffer.truncate()
-        return text
-
-    writer.writerow(csv_header(space))
-    yield flush()
-    cursor: str | None = None
-    while True:
-        page = list_points(store, kb, type_id, limit=page_size, cursor=cursor)
-        for p in page.points:
-            values: list[Any] = [p.point_id, int(p.feasible)]
-            for label, domain in space.items():
-                v = p.x[label]
-                values.extend(v if domain["kind"] == "continuous" else [v])
-            source = p.source or {}
-            values.extend(source.get(name, "") for name in PROVENANCE)
-            values.extend([p.key or "", p.created_at.isoformat() if p.created_at else ""])
-            writer.writerow(values)
-        yield flush()
-        if page.next_cursor is None:
-            return
-        cursor = page.next_cursor

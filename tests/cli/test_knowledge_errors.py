@@ -139,3 +139,53 @@ def test_help_documents_the_knowledge_base_exit_status(command: str, status_1: s
     text = " ".join(out.stdout.split())
     assert status_1 in text
     assert f"{KB_UNAVAILABLE_STATUS} when the knowledge base cannot be reached" in text
+
+
+@pytest.mark.parametrize("action", ["create", "delete"])
+def test_kb_writes_refused_a_token_exit_3_as_plan_does(guarded: LiveServer, action: str) -> None:
+    out = cpkb("kb", action, "x", "--kb-url", guarded.url, "--token", "wrong")
+    assert "check --token or CPKB_TOKEN" in one_line_error(out, "kb")
+
+
+def test_demo_with_no_service_at_the_url_is_one_line() -> None:
+    url = f"http://127.0.0.1:{free_port()}"
+    out = cpkb("demo", "--analytic", "--seeds", "1", "--kb-url", url)
+    assert f"cannot reach the knowledge base at {url}" in one_line_error(out, "demo")
+
+
+def test_plan_with_a_knowledge_base_that_does_not_exist_says_so(guarded: LiveServer) -> None:
+    out = cpkb(*PLAN, "--kb-url", guarded.url, "--kb", "labb", "--token", TOKEN)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "knowledge base 'labb' does not exist" in lines[0]
+    assert "--create-kb" in lines[0]
+    with CpkbClient(guarded.url) as client:
+        assert "labb" not in [kb.name for kb in client.list_kbs()]
+
+
+def test_plan_in_an_embedded_base_that_does_not_exist_says_so(tmp_path: Path) -> None:
+    db = tmp_path / "kb.sqlite"
+    out = cpkb(*PLAN, "--kb", "labb", CPKB_DATABASE_URL=f"sqlite:///{db}")
+    assert out.returncode == 2, out.stderr
+    assert "knowledge base 'labb' does not exist in the embedded" in out.stderr
+    assert not db.exists()  # nothing was created
+
+
+@pytest.mark.slow
+def test_plan_with_create_kb_makes_the_base_and_runs(guarded: LiveServer) -> None:
+    out = cpkb(
+        *PLAN,
+        "--kb-url",
+        guarded.url,
+        "--kb",
+        "fresh",
+        "--create-kb",
+        "--token",
+        TOKEN,
+        "--max-rollouts",
+        "5",
+        "--json",
+    )
+    assert out.returncode in (0, 1), out.stderr
+    with CpkbClient(guarded.url) as client:
+        assert "fresh" in [kb.name for kb in client.list_kbs()]

@@ -61,16 +61,24 @@ def test_points_survive_a_restart_and_show_in_cpkb_types(
         assert cli("kb", "delete", "scratch", "--url", server.url).returncode == 0
         assert "scratch" not in cli("kb", "list", "--url", server.url).stdout
 
+        # the service refused the request: the README's exit 3, as plan and bench give
         unknown = cli("types", "--kb", "nope", "--url", server.url)
-        assert unknown.returncode == 2
-        assert unknown.stderr.strip() == "cpkb types: error: knowledge base 'nope' not found"
+        assert unknown.returncode == 3
+        assert unknown.stderr.strip().splitlines() == [
+            f"cpkb types: error: the knowledge base at {server.url} answered 404 GET "
+            "/v1/kbs/nope/types: knowledge base 'nope' not found"
+        ]
         taken = cli("kb", "create", "lab", "--url", server.url)
-        assert taken.returncode == 2 and "already exists" in taken.stderr
+        assert taken.returncode == 3 and "already exists" in taken.stderr
 
 
-def test_unreachable_server_is_one_line_exit_2() -> None:
-    out = cpkb("types", "--url", f"http://127.0.0.1:{free_port()}")
-    assert out.returncode == 2
+@pytest.mark.parametrize(
+    "command",
+    [("types",), ("kb", "list"), ("kb", "create", "x"), ("kb", "delete", "x"), ("bindings",)],
+)
+def test_unreachable_server_is_one_line_exit_3_for_every_command(command: tuple[str, ...]) -> None:
+    out = cpkb(*command, "--url", f"http://127.0.0.1:{free_port()}")
+    assert out.returncode == 3, out.stderr
     assert out.stderr.count("\n") == 1 and "cannot reach the knowledge base" in out.stderr
     assert "Traceback" not in out.stderr
 

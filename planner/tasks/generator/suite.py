@@ -227,6 +227,12 @@ def probe(path: Path, settings: ProbeSettings, seeds: list[int]) -> list[int | N
     return found
 
 
+def probe_text(rollouts: list[int | None], settings: ProbeSettings) -> str:
+    """The probes' outcome for a person: `quasi-random rollouts 12, unsolved in 500, 40`."""
+    shown = [f"unsolved in {settings.max_rollouts}" if r is None else str(r) for r in rollouts]
+    return "quasi-random rollouts " + ", ".join(shown)
+
+
 def passes(rollouts: list[int | None], settings: ProbeSettings) -> bool:
     solved = [r for r in rollouts if r is not None]
     if len(solved) * 2 <= settings.seeds:
@@ -290,7 +296,7 @@ def generate_workspace(
                 seeds = [int(s) for s in rng.integers(0, 2**31, size=settings.seeds)]
                 rollouts = probe(target, settings, seeds) if settings.check else []
                 if settings.check:
-                    log(f"{name} {kind} try {tries}: quasi-random rollouts {rollouts}")
+                    log(f"{name} {kind} try {tries}: {probe_text(rollouts, settings)}")
                 if not settings.check or passes(rollouts, settings):
                     seeds = seeds[: len(rollouts)]
                     reports.append(

@@ -66,7 +66,28 @@ def test_heat_map_shows_a_boundary_off_the_first_two_dimensions_by_default(
                 assert len(probs) >= 100
                 assert max(probs) > 0.7 and min(probs) < 0.3
                 expect_text = page.locator("#heatmap .cp-slice").text_content() or ""
-                assert "latest infeasible point" in expect_text
+                assert "the newest feasible point" in expect_text
+
+                # The map goes through the held point: the cell it lies in says about what the
+                # model says at the point itself (issue 56.1: 0.04 on the map, 0.81 at it).
+                cell_p = page.evaluate(
+                    """() => {
+                    const ring = document.querySelector("#heatmap circle.cp-held");
+                    const cx = +ring.getAttribute("cx"), cy = +ring.getAttribute("cy");
+                    for (const r of ring.closest("g").querySelectorAll("rect.cp-cell")) {
+                      const x = +r.getAttribute("x"), y = +r.getAttribute("y");
+                      if (cx >= x && cx < x + +r.getAttribute("width") &&
+                          cy >= y && cy < y + +r.getAttribute("height")) return +r.dataset.p;
+                    }
+                    return null;
+                }"""
+                )
+                held_id = int(page.locator("#held-note").get_attribute("data-point-id") or -1)
+                held_x = next(
+                    p.x for p in client.iter_points("default", type_id) if p.point_id == held_id
+                )
+                at_point = client.predict("default", type_id, [held_x])[0]
+                assert cell_p is not None and abs(cell_p - at_point) < 0.35, (cell_p, at_point)
 
                 # Uncertainty shows: the choices no point holds are hatched all over, the one
                 # the points hold is not, and the legend says what the hatch means.
@@ -130,6 +151,10 @@ def test_dashboard_in_headless_chromium(chromium: str, sqlite_url: str, tmp_path
                 page.on(
                     "console",
                     lambda msg: errors.append(msg.text) if msg.type == "error" else None,
+                )
+                page.on(
+                    "response",
+                    lambda r: errors.append(f"{r.status} {r.url}") if r.status >= 400 else None,
                 )
                 page.goto(f"{url}/")
                 types = page.locator("#types-table tbody tr")

@@ -128,22 +128,40 @@ def test_every_panel_is_drawn_and_panels_without_points_say_so() -> None:
     assert "no data" in "".join(panels[1].itertext())
 
 
-def test_the_slice_goes_through_the_latest_infeasible_point_and_is_named() -> None:
+def test_the_slice_goes_through_the_newest_feasible_point_and_is_named() -> None:
     observed = [
-        ({"#dir": "top", "#pose": [0.1, 0.2, 0.3]}, False),
-        ({"#dir": "top", "#pose": [0.4, 0.5, 0.6]}, False),
-        ({"#dir": "top", "#pose": [0.9, 0.9, 0.9]}, True),
+        ({"#dir": "top", "#pose": [0.1, 0.2, 0.3]}, True),
+        ({"#dir": "front", "#pose": [0.4, 0.5, 0.6]}, True),
+        ({"#dir": "top", "#pose": [0.9, 0.9, 0.9]}, False),
     ]
-    held = choose_slice(SPACE, observed)
-    assert held.values == {"#pose": [0.4, 0.5, 0.6]} and "infeasible" in held.origin
-    feasible_only = choose_slice(SPACE, [(x, True) for x, _ in observed])
-    assert feasible_only.values == {"#pose": [0.4, 0.5, 0.6]} and "median" in feasible_only.origin
+    held = choose_slice(SPACE, observed, [11, 12, 13])
+    assert held.values == {"#pose": [0.4, 0.5, 0.6]} and held.choices == {"#dir": "front"}
+    assert held.point_id == 12 and held.origin == "point #12, the newest feasible point"
+    infeasible_only = choose_slice(SPACE, [(x, False) for x, _ in observed], [11, 12, 13])
+    assert infeasible_only.point_id == 13 and "newest point" in infeasible_only.origin
     assert choose_slice(SPACE, []).values == {"#pose": [0.5, 1.0, 0.0]}
     dx, dy, _ = continuous_dims(SPACE)
     pts = grid_points(SPACE, dx, dy, {"#dir": "top"}, 3, held.values)
     assert {p["#pose"][2] for p in pts} == {0.6}
     svg = render_heatmap_svg(SPACE, dx, dy, None, observed, n=4, held=held)
-    assert "held at the latest infeasible point" in svg
+    assert "held at point #12, the newest feasible point (ringed" in svg
+
+
+def test_points_fade_with_their_distance_from_the_held_point_off_the_axes() -> None:
+    observed = [
+        ({"#dir": "top", "#pose": [0.2, 0.2, 0.0]}, True),  # on the slice
+        ({"#dir": "top", "#pose": [0.8, 1.0, 0.3]}, True),  # near it in #pose[2]
+        ({"#dir": "top", "#pose": [0.5, 0.5, 2.9]}, False),  # far from it in #pose[2]
+    ]
+    held = choose_slice(SPACE, observed[:1], [5])
+    dx, dy, _ = continuous_dims(SPACE)
+    root = ET.fromstring(render_heatmap_svg(SPACE, dx, dy, None, observed, n=4, held=held))
+    near = [float(m.get("data-closeness")) for m in _marks(root)]
+    assert near[0] == 1.0 and 0.5 < near[1] < 1.0 and near[2] < 0.1
+    opacities = [float(m.get("opacity")) for m in _marks(root)]
+    assert opacities[0] == 1.0 and opacities[2] < 0.2
+    rings = [e for e in root.iter() if e.get("class") == "cp-held"]
+    assert [r.get("data-point-id") for r in rings] == ["5"]  # in the panel of its own choice
 
 
 def test_the_scale_is_not_red_to_green() -> None:

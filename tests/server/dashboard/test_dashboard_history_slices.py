@@ -11,7 +11,7 @@ from pydantic import TypeAdapter
 from contract.models import Domain
 from server.dashboard.heatmap import Slice
 from server.dashboard.history_svg import render_history_svg
-from server.dashboard.slices import held_choices, render_slices_svg
+from server.dashboard.slices import render_slices_svg
 from server.services import browse
 from tests.service_support import make_graph, make_point
 
@@ -67,8 +67,7 @@ def test_slices_put_the_most_relevant_dimension_first_with_its_curve() -> None:
         ({"#dir": "front", "#pose": [0.7, 0.4]}, False),
         ({"#dir": "top", "#pose": [0.9, 0.1]}, False),
     ]
-    held = Slice({"#pose": [0.9, 0.1]}, "the latest infeasible point")
-    assert held_choices(SPACE, observed) == {"#dir": "top"}
+    held = Slice({"#pose": [0.9, 0.1]}, "point #3", {"#dir": "top"}, 3)
     svg = ET.fromstring(
         render_slices_svg(
             SPACE, _right_half_feasible, observed, held, {"#pose[0]": 3.0, "#pose[1]": 0.3}
@@ -83,6 +82,13 @@ def test_slices_put_the_most_relevant_dimension_first_with_its_curve() -> None:
     assert ys[0] > ys[-1]  # P rises from 0 to 1 along #pose[1]: y goes up the picture
     marks = [c for c in panels[0].iter(f"{SVG_NS}circle")]
     assert sorted(c.get("data-feasible") for c in marks) == ["0", "0", "1"]
+    # faded by distance from the held point in #pose[0] and #dir: the held point itself is whole
+    closeness = {
+        c.get("data-feasible") + c.get("cx"): float(c.get("data-closeness")) for c in marks
+    }
+    assert max(closeness.values()) == 1.0 and min(closeness.values()) < 0.5
+    held_line = [e for e in panels[0].iter() if e.get("class") == "cp-held"]
+    assert len(held_line) == 1 and held_line[0].get("data-point-id") == "3"
     no_model = render_slices_svg(SPACE, None, observed, held, {})
     assert "no surrogate yet" in no_model and "<polyline" not in no_model
 

@@ -51,7 +51,10 @@ def _rows(html: str, tbody_id: str) -> list[str]:
 
 
 def _point_ids(html: str) -> list[int]:
-    return [int(i) for i in re.findall(r'<tr class="(?:in)?feasible" data-point-id="(\d+)">', html)]
+    return [
+        int(i)
+        for i in re.findall(r'<tr class="(?:in)?feasible(?: held)?" data-point-id="(\d+)">', html)
+    ]
 
 
 def _link(html: str, link_id: str) -> str | None:
@@ -115,7 +118,7 @@ def test_type_json_carries_the_filtered_table(stocked: dict[str, Any]) -> None:
 
 def test_overview_pages_its_types(stocked: dict[str, Any]) -> None:
     client = stocked["client"]
-    first = client.get("/", params={"limit": 1}).text
+    first = client.get("/", params={"kb": "default", "limit": 1}).text
     assert len(_rows(first, "types-rows")) == 1 and "types 1-1 of 2" in first
     second = client.get("/" + _link(first, "types-next").lstrip("/")).text
     assert len(_rows(second, "types-rows")) == 1 and "types 2-2 of 2" in second
@@ -125,7 +128,7 @@ def test_overview_pages_its_types(stocked: dict[str, Any]) -> None:
 
 def test_overview_lists_bases_types_with_provenance_and_workers(stocked: dict[str, Any]) -> None:
     client = stocked["client"]
-    page = client.get("/")
+    page = client.get("/", params={"kb": "default"})
     assert page.status_code == 200
     assert page.headers["content-type"].startswith("text/html")
     html = page.text
@@ -146,6 +149,15 @@ def test_overview_lists_bases_types_with_provenance_and_workers(stocked: dict[st
     assert "types 1-2 of 2" in html
 
 
+def test_the_landing_page_opens_the_most_recently_active_base(stocked: dict[str, Any]) -> None:
+    client = stocked["client"]
+    # `lab` got its point last: it opens, not the `default` that holds more
+    assert 'data-poll="/ui/api/overview?kb=lab&amp;' in client.get("/").text
+    _post(client, "default", [make_point(99, graph=make_graph("Inv-kin", ("box1",)))])
+    assert 'data-poll="/ui/api/overview?kb=default&amp;' in client.get("/").text
+    assert client.get("/ui/api/overview").json()["kb"] == "default"
+
+
 def test_overview_of_another_base_and_of_an_unknown_one(stocked: dict[str, Any]) -> None:
     client = stocked["client"]
     lab = client.get("/?kb=lab").text
@@ -159,7 +171,7 @@ def test_overview_json_carries_data_and_the_fragments_the_page_swaps_in(
     stocked: dict[str, Any],
 ) -> None:
     client = stocked["client"]
-    before = client.get("/ui/api/overview").json()
+    before = client.get("/ui/api/overview", params={"kb": "default"}).json()
     assert before["kb"] == "default"
     assert {t["type_id"]: t["n_points"] for t in before["types"]}[stocked["blocked"]] == 27
     assert set(before["fragments"]) == {"kbs-rows", "types-rows", "types-panel", "workers-rows"}
@@ -171,7 +183,7 @@ def test_overview_json_carries_data_and_the_fragments_the_page_swaps_in(
             for i in range(3)
         ],
     )
-    after = client.get("/ui/api/overview").json()
+    after = client.get("/ui/api/overview", params={"kb": "default"}).json()
     assert {t["type_id"]: t["n_points"] for t in after["types"]}[stocked["blocked"]] == 30
     assert after["workers"][0]["worker"] == "late-worker"
     assert "late-worker" in after["fragments"]["workers-rows"]
@@ -223,6 +235,9 @@ def test_type_json_follows_new_points(stocked: dict[str, Any]) -> None:
         "stats-panel",
         "provenance-panel",
         "surrogate-panel",
+        "dims-panel",
+        "relevance-panel",
+        "tasks-panel",
         "points-panel",
     }
     _post(client, "default", [make_point(7, graph=make_graph("Plan-motion", ("shelf",)))])
@@ -311,7 +326,7 @@ def test_a_whole_knowledge_base_exports_as_one_zip(stocked: dict[str, Any]) -> N
     )
     assert len(rows) == 27 and {r["task"] for r in rows} == {"desk", "deskP"}
     assert client.get("/ui/kbs/nope/export.zip").status_code == 404
-    assert 'href="/ui/kbs/default/export.zip"' in client.get("/").text
+    assert 'href="/ui/kbs/default/export.zip"' in client.get("/", params={"kb": "default"}).text
 
 
 def test_choosing_heat_map_axes_keeps_the_table_filters(stocked: dict[str, Any]) -> None:
