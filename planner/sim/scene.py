@@ -21,9 +21,7 @@ from planner.tasks.schema import FixedBody, NamedPose, Region, Task
 
 ARM_JOINTS = (0, 1, 2, 3, 4, 5, 6)
 FINGER_JOINTS = (9, 10)
-TCP_LINK = 11  # panda_grasptarget, between the fingertips
 HAND_LINKS = (7, 8, 9, 10, 11)  # flange, hand, fingers: may touch the body they hold
-MAX_FINGER_OPENING = 0.04  # per finger: the gripper opens 0.08 m
 PLACE_CLEARANCE = 0.001  # a placed body floats 1 mm above its support, as the authors do
 
 
@@ -68,6 +66,12 @@ class Scene:
             info = p.getJointInfo(self.robot, j, physicsClientId=self.client)
             self.joint_low.append(info[8])
             self.joint_high.append(info[9])
+        links = {
+            p.getJointInfo(self.robot, j, physicsClientId=self.client)[12].decode(): j
+            for j in range(p.getNumJoints(self.robot, physicsClientId=self.client))
+        }
+        self.tool_link = links[ws.robot.tool_link]  # the loader checked the URDF has it
+        self.max_finger_opening = ws.robot.gripper_opening / 2  # each finger's travel
         self.names: dict[int, str] = {self.robot: "robot"}
         self.ids: dict[str, int] = {}
         statics = [*ws.fixed.values(), *(ws.obstacles[n] for n in task.obstacles)]
@@ -203,7 +207,7 @@ class Scene:
 
     def tcp(self) -> Pose:
         state = p.getLinkState(
-            self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
+            self.robot, self.tool_link, computeForwardKinematics=True, physicsClientId=self.client
         )
         return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
 

@@ -12,7 +12,7 @@ from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp
 from planner.sim.motion import CollisionTally
 from planner.sim.operators import OPERATORS, ArmConfig, Execution
-from planner.sim.scene import MAX_FINGER_OPENING, Scene
+from planner.sim.scene import Scene
 from planner.skeleton import Skeleton
 from planner.tasks import Task, build_skeleton
 from planner.tasks.loader import HOME_CONFIG
@@ -51,7 +51,7 @@ class PyBulletWorld:
         }
         self._initial = SimState(
             arm=tuple(task.workspace.robot.home),
-            fingers=MAX_FINGER_OPENING,
+            fingers=self.scene.max_finger_opening,
             poses=tuple((n, self.scene.pose(n)) for n in self.scene.movable_names),
             held=None,
             values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),

@@ -1,17 +1,26 @@
-"""Geometry that loads but cannot work: a region too small for its body, a place out of reach.
+"""Geometry that cannot work, found when a task loads, before any rollout.
 
-Pure arithmetic on the task's data (no simulator), so that `load_task` can report it at once;
-the numbers follow the simulator's own rules (`planner.sim.scene.Scene.region_pose`).
+`impossibility` finds what certainly fails (a body wider than the gripper opens, a start pose
+or a goal region beyond the arm's reach, a region narrower than its body): the loader refuses
+the task with it. `geometry_warnings` finds what will likely fail (a region the sampler cannot
+spread its body in, a place beyond the Panda's stated reach): the task loads, with a warning.
+Pure arithmetic on the task's data (no simulator); the numbers follow the simulator's own
+rules (`planner.sim.scene.Scene.region_pose`, `planner.sim.grasps.make_grasp`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-from planner.tasks.schema import LayerSpec, MovableBody, Region, Workspace
+from planner.tasks.reach import ArmReach, arm_reach
+from planner.tasks.schema import Goal, LayerSpec, MovableBody, Region, Workspace
 
 PANDA_SHOULDER_HEIGHT = 0.333  # joint 2 above the base, where the arm's reach is measured from
 PANDA_REACH = 0.855  # the Panda's stated maximum reach from that joint, metres
+FINGER_CLEARANCE = 0.01  # each finger stays this far off the body while open
+TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
+SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
 
 
 def footprint_margin(body: MovableBody) -> float:
@@ -77,3 +86,98 @@ def geometry_warnings(
                 f"beyond the Panda's {PANDA_REACH} m reach"
             )
     return tuple(found)
+
+
+@dataclass(frozen=True)
+class Impossible:
+    """What cannot work, and the task file's field it is written in."""
+
+    where: str
+    message: str
+
+
+def max_held_width(workspace: Workspace) -> float:
+    """The widest body side the gripper closes across, clearance left on both fingers."""
+    return workspace.robot.gripper_opening - 2 * FINGER_CLEARANCE
+
+
+def _tool_heights(surface: float, body: MovableBody) -> tuple[float, float]:
+    """The lowest and highest tool centre of any grasp of `body` standing on `surface`."""
+    height = body.size[2]
+    top = surface + height - min(TOP_GRASP_DEPTH, height / 2)
+    side = surface + height / 2 + max(0.0, height / 2 - SIDE_GRASP_BELOW_TOP)
+    return min(top, side), max(top, side)
+
+
+def _nearest(reach: ArmReach, region: Region, margin: float, heights: tuple[float, float]) -> float:
+    """The least distance from the arm's shoulder to a tool centre over the body's centres in
+    `region` (its rectangle shrunk by `margin`) at the given heights."""
+    half_x = max(0.0, region.size[0] / 2 - margin)
+    half_y = max(0.0, region.size[1] / 2 - margin)
+    c, s = math.cos(region.yaw), math.sin(region.yaw)
+    dx, dy = reach.shoulder[0] - region.center[0], reach.shoulder[1] - region.center[1]
+    local_x, local_y = c * dx + s * dy, -s * dx + c * dy
+    out_x = max(0.0, abs(local_x) - half_x)
+    out_y = max(0.0, abs(local_y) - half_y)
+    low, high = heights
+    out_z = max(0.0, low - reach.shoulder[2], reach.shoulder[2] - high)
+    return math.sqrt(out_x**2 + out_y**2 + out_z**2)
+
+
+def impossibility(
+    workspace: Workspace,
+    bodies: dict[str, MovableBody],
+    layers: tuple[LayerSpec, ...],
+    goals: tuple[Goal, ...],
+) -> Impossible | None:
+    """The first thing in the task that no binding can make work, or None."""
+    reach = arm_reach(workspace.robot)
+    robot = workspace.robot.urdf
+    picked = dict.fromkeys(
+        c.args[0] for layer in layers for c in layer.calls if c.name == "Inv-kin"
+    )
+    widest = max_held_width(workspace)
+    for name in picked:
+        body = bodies[name]
+        narrow = min(body.size[:2])
+        if narrow > widest:
+            return Impossible(
+                f"bodies.{name}.size",
+                f"{name} is {body.size[0]:.3f} x {body.size[1]:.3f} m across, but the gripper "
+                f"opens {workspace.robot.gripper_opening:.3f} m and holds at most {widest:.3f} m "
+                f"({FINGER_CLEARANCE} m clear of each finger): no grasp can pick it",
+            )
+        pose = workspace.poses[body.pose]
+        surface = workspace.regions[pose.region].center[2]
+        start = Region(pose.name, (*pose.xy, surface), (0.0, 0.0))
+        distance = _nearest(reach, start, 0.0, _tool_heights(surface, body))
+        if distance > reach.bound:
+            return Impossible(
+                f"bodies.{name}.pose",
+                f"{name} starts at {body.pose}, {distance:.2f} m from the arm's shoulder: "
+                f"beyond the {reach.bound:.2f} m {robot} reaches at most, no grasp can pick it",
+            )
+    for i, layer in enumerate(layers):
+        call = layer.calls[0]
+        if call.name != "Sample-pose":
+            continue
+        body, region = bodies[call.args[0]], workspace.regions[call.args[1]]
+        if min(body.size[:2]) > min(region.size):
+            return Impossible(
+                f"skeleton[{i}].decision",
+                f"no place in {region.name} ({region.size[0]:.3f} x {region.size[1]:.3f} m) "
+                f"fits {body.name}: its narrower side, {min(body.size[:2]):.3f} m, is wider "
+                "than the region at any yaw",
+            )
+    for i, goal in enumerate(goals):
+        body, region = bodies[goal.body], workspace.regions[goal.region]
+        margin = footprint_margin(body)
+        distance = _nearest(reach, region, margin, _tool_heights(region.center[2], body))
+        if distance > reach.bound:
+            return Impossible(
+                f"goal[{i}]",
+                f"On({goal.body}, {goal.region}): every place in {goal.region} is at least "
+                f"{distance:.2f} m from the arm's shoulder, beyond the {reach.bound:.2f} m "
+                f"{robot} reaches at most: no operator can put {goal.body} there",
+            )
+    return None

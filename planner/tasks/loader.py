@@ -15,7 +15,8 @@ from typing import Any
 
 import yaml
 
-from planner.tasks.checks import geometry_warnings
+from planner.tasks.checks import geometry_warnings, impossibility
+from planner.tasks.reach import arm_reach
 from planner.tasks.schema import (
     BoxPart,
     Call,
@@ -34,6 +35,10 @@ from planner.tasks.schema import (
 
 GRASP_DIRECTIONS = ("front", "right", "top", "back", "left")
 HOME_CONFIG = "config0"
+# A workspace that names no tool link or gripper opening has the Panda's (panda.urdf's link
+# between the fingertips; the Franka hand opens 0.08 m).
+PANDA_TOOL_LINK = "panda_grasptarget"
+PANDA_GRIPPER_OPENING = 0.08
 # operator -> (argument kinds, output kinds); kinds name what an argument must refer to.
 OPERATORS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "Sample-grasp": (("body",), ("#dir",)),
@@ -170,7 +175,7 @@ def load_workspace(path: Path) -> Workspace:
     data = r.mapping(_read_yaml(path), "top level")
     r.only(data, {"workspace", "robot", "fixed", "obstacles", "regions", "poses"}, "")
     robot_raw = r.mapping(r.get(data, "robot", ""), "robot")
-    r.only(robot_raw, {"urdf", "base", "home"}, "robot")
+    r.only(robot_raw, {"urdf", "base", "home", "tool_link", "gripper_opening"}, "robot")
     home = r.get(robot_raw, "home", "robot")
     if not isinstance(home, list) or len(home) != 7:
         raise r.fail("robot.home", "expected the 7 arm joint angles (radians)")
@@ -178,7 +183,17 @@ def load_workspace(path: Path) -> Workspace:
         urdf=str(r.get(robot_raw, "urdf", "robot")),
         base=r.vector(robot_raw.get("base", [0, 0, 0]), 3, "robot.base"),
         home=r.vector(home, 7, "robot.home"),
+        tool_link=r.name(robot_raw.get("tool_link", PANDA_TOOL_LINK), "robot.tool_link"),
+        gripper_opening=r.number(
+            robot_raw.get("gripper_opening", PANDA_GRIPPER_OPENING),
+            "robot.gripper_opening",
+            positive=True,
+        ),
     )
+    try:
+        arm_reach(robot)
+    except TaskError as exc:
+        raise r.fail("robot", str(exc)) from None
     fixed = _named_bodies(r, r.get(data, "fixed", ""), "fixed")
     obstacles = _named_bodies(r, data.get("obstacles"), "obstacles")
     clash = sorted(set(fixed) & set(obstacles))
@@ -443,6 +458,9 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
                 f"{m.group(2)} in {m.group(3)}",
             )
         goals.append(Goal(m.group(1), m.group(2), m.group(3)))
+    impossible = impossibility(workspace, bodies, layers, tuple(goals))
+    if impossible is not None:
+        raise r.fail(impossible.where, impossible.message)
     settings_raw = r.mapping(data.get("settings") or {}, "settings")
     defaults = PlannerSettings()
     r.only(settings_raw, set(defaults.__dataclass_fields__), "settings")

@@ -56,9 +56,15 @@ class NamedPose:
 
 @dataclass(frozen=True)
 class RobotSpec:
+    """The arm: its URDF (in pybullet_data or an absolute path), where its base stands, its
+    home configuration (`config0`), the link whose frame is the tool centre point between the
+    fingertips, and how wide its gripper opens (metres, between the fingers)."""
+
     urdf: str
     base: Vec3
     home: tuple[float, ...]
+    tool_link: str
+    gripper_opening: float
 
 
 @dataclass(frozen=True)
