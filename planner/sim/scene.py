@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import pybullet as p
 import pybullet_data
 
-from planner.sim.geometry import Pose, compose, invert, yaw_quat
+from planner.sim.geometry import Pose, compose, invert, yaw_of, yaw_quat
 from planner.tasks.schema import FixedBody, NamedPose, Region, Task
 
 ARM_JOINTS = (0, 1, 2, 3, 4, 5, 6)
@@ -127,7 +127,12 @@ class Scene:
 
     # -- poses -----------------------------------------------------------------------------
     def region(self, name: str) -> Region:
-        return self.task.workspace.regions[name]
+        """A workspace region, or the top face of a movable body where it stands now."""
+        if name not in self.sizes:
+            return self.task.workspace.regions[name]
+        (x, y, z), orn = self.pose(name)
+        size_x, size_y, height = self.sizes[name]
+        return Region(name, (x, y, z + height / 2), (size_x, size_y), yaw_of(orn))
 
     def standing_pose(self, body: str, region: Region, x: float, y: float, yaw: float) -> Pose:
         z = region.center[2] + self.sizes[body][2] / 2 + PLACE_CLEARANCE

@@ -23,6 +23,17 @@ TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
 SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
 
 
+def start_region(workspace: Workspace, bodies: dict[str, MovableBody], name: str) -> Region:
+    """The region `name`: the workspace's, or the top face of a movable body where it starts
+    (`On(body, other_body)` stacks on it; the simulator follows the body if it moves)."""
+    if name in workspace.regions:
+        return workspace.regions[name]
+    body = bodies[name]
+    pose = workspace.poses[body.pose]
+    top = workspace.regions[pose.region].center[2] + body.size[2]
+    return Region(name, (*pose.xy, top), (body.size[0], body.size[1]), pose.yaw)
+
+
 def footprint_margin(body: MovableBody) -> float:
     """How far `Sample-pose` keeps the body's centre inside each edge of a region: half the
     longer side of its footprint, whatever the yaw it is placed at."""
@@ -58,7 +69,7 @@ def geometry_warnings(
         tuple(c.args) for layer in layers for c in layer.calls if c.name == "Sample-pose"
     )
     for body_name, region_name in placements:
-        body, region = bodies[body_name], workspace.regions[region_name]
+        body, region = bodies[body_name], start_region(workspace, bodies, region_name)
         margin = footprint_margin(body)
         if min(region.size) < 2 * margin:
             found.append(
@@ -161,7 +172,7 @@ def impossibility(
         call = layer.calls[0]
         if call.name != "Sample-pose":
             continue
-        body, region = bodies[call.args[0]], workspace.regions[call.args[1]]
+        body, region = bodies[call.args[0]], start_region(workspace, bodies, call.args[1])
         if min(body.size[:2]) > min(region.size):
             return Impossible(
                 f"skeleton[{i}].decision",
@@ -170,7 +181,7 @@ def impossibility(
                 "than the region at any yaw",
             )
     for i, goal in enumerate(goals):
-        body, region = bodies[goal.body], workspace.regions[goal.region]
+        body, region = bodies[goal.body], start_region(workspace, bodies, goal.region)
         margin = footprint_margin(body)
         distance = _nearest(reach, region, margin, _tool_heights(region.center[2], body))
         if distance > reach.bound:

@@ -277,9 +277,11 @@ def _check_arguments(
                 raise r.fail(
                     where, f"{arg} is a {have} output, but {call.name} needs a {kind} here"
                 )
-        elif arg not in task_names[kind]:
+        elif arg not in task_names[kind] and not (kind == "region" and arg in task_names["body"]):
             known = ", ".join(sorted(task_names[kind])) or "none"
             raise r.fail(where, f"{arg!r} is not a {kind} of this task (known: {known})")
+    if call.name == "Sample-pose" and call.args[0] == call.args[1]:
+        raise r.fail(where, f"{call.args[0]} cannot stand on itself")
     for out, kind in zip(call.outputs, out_kinds, strict=True):
         if out in produced:
             raise r.fail(where, f"{out} is produced twice")
@@ -447,8 +449,11 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
     for i, g in enumerate(raw_goal):
         m = _GOAL.match(g) if isinstance(g, str) else None
         if m is None:
-            raise r.fail(f"goal[{i}]", f"expected 'On(body, region)', got {g!r}")
-        if m.group(2) not in bodies or m.group(3) not in workspace.regions:
+            raise r.fail(
+                f"goal[{i}]", f"expected 'On(body, region)' or 'On(body, other_body)', got {g!r}"
+            )
+        supports = set(workspace.regions) | (set(bodies) - {m.group(2)})
+        if m.group(2) not in bodies or m.group(3) not in supports:
             raise r.fail(f"goal[{i}]", f"{g!r} names an unknown body or region")
         placements = {c.args for layer in layers for c in layer.calls if c.name == "Sample-pose"}
         if (m.group(2), m.group(3)) not in placements:
