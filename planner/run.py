@@ -203,9 +203,24 @@ def run_plan(
     return _plan(request, progress)
 
 
+def _goal_only(task: str | Path | BindingWorld) -> Any:
+    """The task, when it is a task file or shipped task posed by its goal alone; else None."""
+    if not isinstance(task, str | Path) or str(task).startswith(ANALYTIC_PREFIX):
+        return None
+    from planner.tasks import load_task
+
+    loaded = load_task(task)
+    return loaded if not loaded.layers else None
+
+
 def _plan(request: PlanRequest, progress: Callable[[Progress], None] | None) -> PlanResult:
     seed_everything(request.seed)
     started = time.perf_counter()
+    goal_only = _goal_only(request.task)
+    if goal_only is not None:
+        from planner.goals.search import plan_goal
+
+        return plan_goal(request, goal_only, started, progress)
     world = load_world(request.task, request.seed, gui=request.gui, sim=request.config.sim)
     try:
         if sampler_registry.uses_knowledge(request.method):

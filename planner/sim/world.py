@@ -36,14 +36,23 @@ class PyBulletWorld:
     checks under the run's `sim` policies."""
 
     def __init__(
-        self, task: Task, *, seed: int, gui: bool = False, sim: SimConfig | None = None
+        self,
+        task: Task,
+        *,
+        seed: int,
+        gui: bool = False,
+        sim: SimConfig | None = None,
+        scene: Scene | None = None,
     ) -> None:
+        """`scene`: another world's scene of the same bodies, to share one PyBullet client
+        among the skeletons of one goal (`planner.goals`); its owner closes it."""
         self.task = task
         self.sim = sim if sim is not None else SimConfig()
         self.name = task.name
         self.seed = int(seed)
         self.skeleton: Skeleton = build_skeleton(task)
-        self.scene = Scene(task, gui=gui)
+        self._owns_scene = scene is None
+        self.scene = scene if scene is not None else Scene(task, gui=gui)
         self.pose_sources = {
             d.var: (d.producer.args[0], d.producer.args[1])
             for d in self.skeleton.decisions
@@ -52,7 +61,10 @@ class PyBulletWorld:
         self._initial = SimState(
             arm=tuple(task.workspace.robot.home),
             fingers=self.scene.max_finger_opening,
-            poses=tuple((n, self.scene.pose(n)) for n in self.scene.movable_names),
+            # Where the task puts them, not where a shared scene's last search left them.
+            poses=tuple(
+                (n, self.scene.named_pose(task.bodies[n].pose, n)) for n in self.scene.movable_names
+            ),
             held=None,
             values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),
         )
@@ -141,4 +153,5 @@ class PyBulletWorld:
                 raise ValueError(f"{d.var} must be 3 numbers in [0, 1], got {value!r}")
 
     def close(self) -> None:
-        self.scene.close()
+        if self._owns_scene:
+            self.scene.close()

@@ -144,9 +144,10 @@ def impossibility(
     """The first thing in the task that no binding can make work, or None."""
     reach = arm_reach(workspace.robot)
     robot = workspace.robot.urdf
-    picked = dict.fromkeys(
-        c.args[0] for layer in layers for c in layer.calls if c.name == "Inv-kin"
-    )
+    grasped = [c.args[0] for layer in layers for c in layer.calls if c.name == "Inv-kin"]
+    # A goal-only task moves every body whose goal does not hold where it starts.
+    grasped += [g.body for g in goals if workspace.poses[bodies[g.body].pose].region != g.region]
+    picked = dict.fromkeys(grasped)
     widest = max_held_width(workspace)
     for name in picked:
         body = bodies[name]
@@ -168,14 +169,17 @@ def impossibility(
                 f"{name} starts at {body.pose}, {distance:.2f} m from the arm's shoulder: "
                 f"beyond the {reach.bound:.2f} m {robot} reaches at most, no grasp can pick it",
             )
-    for i, layer in enumerate(layers):
-        call = layer.calls[0]
-        if call.name != "Sample-pose":
-            continue
-        body, region = bodies[call.args[0]], start_region(workspace, bodies, call.args[1])
+    placements = [
+        (f"skeleton[{i}].decision", *layer.calls[0].args)
+        for i, layer in enumerate(layers)
+        if layer.calls[0].name == "Sample-pose"
+    ]
+    placements += [(f"goal[{i}]", g.body, g.region) for i, g in enumerate(goals)]
+    for where, body_name, region_name in placements:
+        body, region = bodies[body_name], start_region(workspace, bodies, region_name)
         if min(body.size[:2]) > min(region.size):
             return Impossible(
-                f"skeleton[{i}].decision",
+                where,
                 f"no place in {region.name} ({region.size[0]:.3f} x {region.size[1]:.3f} m) "
                 f"fits {body.name}: its narrower side, {min(body.size[:2]):.3f} m, is wider "
                 "than the region at any yaw",

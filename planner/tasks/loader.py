@@ -441,7 +441,8 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         "config": {HOME_CONFIG},
         "traj": set(),
     }
-    layers = _layers(r, r.get(data, "skeleton", ""), names)
+    # A task without a skeleton is posed by its goal alone (`planner.goals` finds skeletons).
+    layers = _layers(r, data["skeleton"], names) if "skeleton" in data else ()
     goals = []
     raw_goal = r.get(data, "goal", "")
     if not isinstance(raw_goal, list) or not raw_goal:
@@ -456,7 +457,7 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         if m.group(2) not in bodies or m.group(3) not in supports:
             raise r.fail(f"goal[{i}]", f"{g!r} names an unknown body or region")
         placements = {c.args for layer in layers for c in layer.calls if c.name == "Sample-pose"}
-        if (m.group(2), m.group(3)) not in placements:
+        if layers and (m.group(2), m.group(3)) not in placements:
             raise r.fail(
                 f"goal[{i}]",
                 f"no Sample-pose({m.group(2)}, {m.group(3)}) in the skeleton puts "
