@@ -8,6 +8,8 @@ arguments. Constants (bodies, regions, `pose0`, `config0`) are *context* vertexe
 backtracking adds the culprit the simulator names: a context vertex for that body, linked to the
 decision vertex that placed it when an earlier decision of this skeleton did; so is a movable
 body a placement stacks on (`Sample-pose(body, other_body)`), which is named like any region.
+An arm other than the Panda is a context vertex of every failure (`arm:<its URDF>`), so that
+what is learnt with one arm does not steer another.
 
 Labels are task-independent: operator names, workspace constant and body names, and decision
 kinds. Decision labels stay unique by recency: the latest `#dir` in the graph is `#dir`, the one
@@ -310,6 +312,9 @@ def failure_graph(
     builder = _Builder(skeleton, transition_index)
     builder.nodes["failure"] = Node(id="failure", role="failure", label=check.call.name)
     builder.consume(check.call, "failure")
+    encodings = encodings if encodings is not None else Encodings()
+    if encodings.geometry.arm:
+        builder.edge(builder.context(f"arm:{encodings.geometry.arm}"), "failure", "arm")
     body = culprit if culprit is not None else (check.culprits[0].body if check.culprits else None)
     if body is not None:
         placing = builder.placed_by(body, transition_index)
@@ -318,7 +323,6 @@ def failure_graph(
         if placing is not None:
             builder.edge(builder.decision(placing), body_id, "at")
     chain_decisions(builder)
-    encodings = encodings if encodings is not None else Encodings()
     if encodings.body_sizes:
         _label_sizes(builder.nodes, encodings.geometry)
     if not encodings.movable_names:

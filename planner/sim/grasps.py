@@ -20,7 +20,7 @@ from planner.sim.geometry import (
     rotation,
 )
 from planner.sim.motion import Checker, CollisionTally
-from planner.sim.scene import ARM_JOINTS, Scene
+from planner.sim.scene import Scene
 from planner.tasks import GRASP_APPROACH
 from planner.tasks.checks import FINGER_CLEARANCE, SIDE_GRASP_BELOW_TOP, TOP_GRASP_DEPTH
 
@@ -170,6 +170,7 @@ def solve_ik(
     best_pos, best_ang = math.inf, math.inf
     reached = 0
     least_depth = math.inf  # bookkeeping only: draws nothing, so the restarts stay as seeded
+    link_target = scene.tool_link_target(target)
     for attempt in range(restarts):
         if attempt == 0 and first_guess is not None:
             start = first_guess
@@ -187,13 +188,13 @@ def solve_ik(
             solution = p.calculateInverseKinematics(
                 scene.robot,
                 scene.tool_link,
-                target[0],
-                target[1],
+                link_target[0],
+                link_target[1],
                 maxNumIterations=iterations,
                 residualThreshold=tolerance / 10,
                 physicsClientId=scene.client,
             )
-            q = tuple(float(v) for v in np.clip(solution[: len(ARM_JOINTS)], low, high))
+            q = tuple(float(v) for v in np.clip(solution[: len(scene.arm_joints)], low, high))
             scene.set_arm(q)
             error = math.dist(scene.tcp()[0], target[0])
             # Stop when converged, or when a refinement no longer halves the error (stuck

@@ -1,4 +1,4 @@
-"""A task's scene in one PyBullet client: the Panda, static bodies, movable bodies, collisions.
+"""A task's scene in one PyBullet client: the arm, static bodies, movable bodies, collisions.
 
 The client id lives on the `Scene` object; nothing here is global. Collision queries run
 PyBullet's broadphase once (`performCollisionDetection`) and read every contact at once.
@@ -17,11 +17,9 @@ import pybullet as p
 import pybullet_data
 
 from planner.sim.geometry import Pose, compose, invert, yaw_of, yaw_quat
+from planner.tasks.reach import arm_joint_names
 from planner.tasks.schema import FixedBody, NamedPose, Region, Task
 
-ARM_JOINTS = (0, 1, 2, 3, 4, 5, 6)
-FINGER_JOINTS = (9, 10)
-HAND_LINKS = (7, 8, 9, 10, 11)  # flange, hand, fingers: may touch the body they hold
 PLACE_CLEARANCE = 0.001  # a placed body floats 1 mm above its support, as the authors do
 
 
@@ -60,17 +58,26 @@ class Scene:
             flags=flags,
             physicsClientId=self.client,
         )
-        self.joint_low = []
-        self.joint_high = []
-        for j in ARM_JOINTS:
-            info = p.getJointInfo(self.robot, j, physicsClientId=self.client)
-            self.joint_low.append(info[8])
-            self.joint_high.append(info[9])
-        links = {
-            p.getJointInfo(self.robot, j, physicsClientId=self.client)[12].decode(): j
+        infos = [
+            p.getJointInfo(self.robot, j, physicsClientId=self.client)
             for j in range(p.getNumJoints(self.robot, physicsClientId=self.client))
-        }
-        self.tool_link = links[ws.robot.tool_link]  # the loader checked the URDF has it
+        ]
+        by_joint = {info[1].decode(): info[0] for info in infos}
+        # The loader checked that the URDF has the tool link and `home` a value per arm joint.
+        self.arm_joints = tuple(by_joint[name] for name in arm_joint_names(ws.robot))
+        self.tool_link = next(info[0] for info in infos if info[12].decode() == ws.robot.tool_link)
+        self.tool_offset: Pose = (ws.robot.tool_offset, (0.0, 0.0, 0.0, 1.0))
+        # Prismatic fingers are set to the opening a grasp needs; a gripper of revolute
+        # linkages (the xArm's) stays fully open, the held body carried by the tool frame.
+        self.finger_joints = tuple(
+            info[0]
+            for info in infos
+            if info[2] == p.JOINT_PRISMATIC and info[0] not in self.arm_joints
+        )
+        # Everything beyond the last arm joint (flange, hand, fingers) may touch a held body.
+        self.hand_links = tuple(range(self.arm_joints[-1] + 1, len(infos)))
+        self.joint_low = [infos[j][8] for j in self.arm_joints]
+        self.joint_high = [infos[j][9] for j in self.arm_joints]
         self.max_finger_opening = ws.robot.gripper_opening / 2  # each finger's travel
         self.names: dict[int, str] = {self.robot: "robot"}
         self.ids: dict[str, int] = {}
@@ -193,28 +200,36 @@ class Scene:
         # One call for all seven joints: five times faster than resetJointState per joint, and
         # the arm is set once per collision check.
         values = [[float(v)] for v in q]
-        if len(values) != len(ARM_JOINTS):
-            raise ValueError(f"expected {len(ARM_JOINTS)} joint values, got {len(values)}")
+        if len(values) != len(self.arm_joints):
+            raise ValueError(f"expected {len(self.arm_joints)} joint values, got {len(values)}")
         p.resetJointStatesMultiDof(
-            self.robot, list(ARM_JOINTS), values, physicsClientId=self.client
+            self.robot, list(self.arm_joints), values, physicsClientId=self.client
         )
 
     def arm(self) -> tuple[float, ...]:
-        states = p.getJointStates(self.robot, ARM_JOINTS, physicsClientId=self.client)
+        states = p.getJointStates(self.robot, self.arm_joints, physicsClientId=self.client)
         return tuple(s[0] for s in states)
 
     def set_fingers(self, opening: float) -> None:
-        for j in FINGER_JOINTS:
+        for j in self.finger_joints:
             p.resetJointState(self.robot, j, opening, physicsClientId=self.client)
 
     def fingers(self) -> float:
-        return p.getJointState(self.robot, FINGER_JOINTS[0], physicsClientId=self.client)[0]
+        if not self.finger_joints:
+            return self.max_finger_opening
+        return p.getJointState(self.robot, self.finger_joints[0], physicsClientId=self.client)[0]
 
     def tcp(self) -> Pose:
         state = p.getLinkState(
             self.robot, self.tool_link, computeForwardKinematics=True, physicsClientId=self.client
         )
-        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+        link: Pose = (tuple(state[4]), tuple(state[5]))  # type: ignore[assignment]
+        return compose(link, self.tool_offset)
+
+    def tool_link_target(self, tcp: Pose) -> Pose:
+        """Where the tool link must be for the tool centre point to be at `tcp` (what IK
+        solves for)."""
+        return compose(tcp, invert(self.tool_offset))
 
     def joint_range(self, index: int) -> tuple[float, float]:
         return self.joint_low[index], self.joint_high[index]
@@ -241,10 +256,13 @@ class Scene:
                 continue
             if {a, b} == {self.robot, held_id}:
                 link = cp[3] if a == self.robot else cp[4]
-                if link in HAND_LINKS:
+                if link in self.hand_links:
                     continue
             if a == b == self.robot:
-                found.append(Contact("robot", depth))
+                # The hand's own links touching each other is its mechanism (the xArm's
+                # gripper linkage), not a collision.
+                if not (cp[3] in self.hand_links and cp[4] in self.hand_links):
+                    found.append(Contact("robot", depth))
                 continue
             mover = a if a in (self.robot, held_id) else b
             other = b if mover == a else a

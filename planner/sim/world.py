@@ -15,7 +15,7 @@ from planner.sim.operators import OPERATORS, ArmConfig, Execution
 from planner.sim.scene import Scene
 from planner.skeleton import Skeleton
 from planner.tasks import Task, build_skeleton
-from planner.tasks.loader import HOME_CONFIG
+from planner.tasks.loader import HOME_CONFIG, PANDA_URDF
 from planner.world import CheckResult, TransitionOutcome, WorldGeometry
 
 
@@ -83,6 +83,7 @@ class PyBulletWorld:
                 (var, self.scene.placement_extents(body, region))
                 for var, (body, region) in self.pose_sources.items()
             ),
+            arm="" if task.workspace.robot.urdf == PANDA_URDF else task.workspace.robot.urdf,
         )
         self.restore(self._initial)
 

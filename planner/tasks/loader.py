@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from planner.tasks.checks import geometry_warnings, impossibility
-from planner.tasks.reach import arm_reach
+from planner.tasks.reach import arm_joint_names, arm_reach
 from planner.tasks.schema import (
     BoxPart,
     Call,
@@ -37,6 +37,7 @@ GRASP_DIRECTIONS = ("front", "right", "top", "back", "left")
 HOME_CONFIG = "config0"
 # A workspace that names no tool link or gripper opening has the Panda's (panda.urdf's link
 # between the fingertips; the Franka hand opens 0.08 m).
+PANDA_URDF = "franka_panda/panda.urdf"  # the default arm (see `WorldGeometry.arm`)
 PANDA_TOOL_LINK = "panda_grasptarget"
 PANDA_GRIPPER_OPENING = 0.08
 # operator -> (argument kinds, output kinds); kinds name what an argument must refer to.
@@ -175,14 +176,16 @@ def load_workspace(path: Path) -> Workspace:
     data = r.mapping(_read_yaml(path), "top level")
     r.only(data, {"workspace", "robot", "fixed", "obstacles", "regions", "poses"}, "")
     robot_raw = r.mapping(r.get(data, "robot", ""), "robot")
-    r.only(robot_raw, {"urdf", "base", "home", "tool_link", "gripper_opening"}, "robot")
+    allowed = {"urdf", "base", "home", "tool_link", "tool_offset", "gripper_opening"}
+    r.only(robot_raw, allowed, "robot")
     home = r.get(robot_raw, "home", "robot")
-    if not isinstance(home, list) or len(home) != 7:
-        raise r.fail("robot.home", "expected the 7 arm joint angles (radians)")
+    if not isinstance(home, list) or not home:
+        raise r.fail("robot.home", "expected the arm's joint angles (radians)")
     robot = RobotSpec(
         urdf=str(r.get(robot_raw, "urdf", "robot")),
         base=r.vector(robot_raw.get("base", [0, 0, 0]), 3, "robot.base"),
-        home=r.vector(home, 7, "robot.home"),
+        home=r.vector(home, len(home), "robot.home"),
+        tool_offset=r.vector(robot_raw.get("tool_offset", [0, 0, 0]), 3, "robot.tool_offset"),
         tool_link=r.name(robot_raw.get("tool_link", PANDA_TOOL_LINK), "robot.tool_link"),
         gripper_opening=r.number(
             robot_raw.get("gripper_opening", PANDA_GRIPPER_OPENING),
@@ -192,8 +195,14 @@ def load_workspace(path: Path) -> Workspace:
     )
     try:
         arm_reach(robot)
+        joints = arm_joint_names(robot)
     except TaskError as exc:
         raise r.fail("robot", str(exc)) from None
+    if len(joints) != len(robot.home):
+        raise r.fail(
+            "robot.home",
+            f"expected {len(joints)} joint angles ({', '.join(joints)}), got {len(robot.home)}",
+        )
     fixed = _named_bodies(r, r.get(data, "fixed", ""), "fixed")
     obstacles = _named_bodies(r, data.get("obstacles"), "obstacles")
     clash = sorted(set(fixed) & set(obstacles))

@@ -52,9 +52,9 @@ def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 
 @functools.cache
-def _chain(urdf: str, tool_link: str) -> tuple[tuple[str, Vec3, Vec3, float], ...]:
+def _chain(urdf: str, tool_link: str) -> tuple[tuple[str, Vec3, Vec3, float, str], ...]:
     """The joints from the root link to `tool_link`: (type, origin offset, origin roll-pitch-
-    yaw, prismatic stroke)."""
+    yaw, prismatic stroke, name)."""
     path = urdf_path(urdf)
     try:
         root = ElementTree.parse(path).getroot()
@@ -74,7 +74,8 @@ def _chain(urdf: str, tool_link: str) -> tuple[tuple[str, Vec3, Vec3, float], ..
         if joint.get("type") == "prismatic" and limit is not None:
             stroke = abs(float(limit.get("upper", 0))) + abs(float(limit.get("lower", 0)))
         kind = joint.get("type", "fixed")
-        chain.append((kind, _origin(joint, "xyz"), _origin(joint, "rpy"), stroke))
+        name = joint.get("name", "")
+        chain.append((kind, _origin(joint, "xyz"), _origin(joint, "rpy"), stroke, name))
         link = joint.find("parent").get("link")  # type: ignore[union-attr]
     return tuple(reversed(chain))
 
@@ -85,9 +86,16 @@ def arm_reach(robot: RobotSpec) -> ArmReach:
     first = next((i for i, link in enumerate(chain) if link[0] != "fixed"), len(chain))
     # The joints up to the first movable one are rigid: their origins place the shoulder.
     position, turn = np.asarray(robot.base, dtype=float), np.eye(3)
-    for _, offset, rpy, _ in chain[: first + 1]:
+    for _, offset, rpy, _, _ in chain[: first + 1]:
         position = position + turn @ np.asarray(offset)
         turn = turn @ _rpy_matrix(*rpy)
-    bound = sum(math.hypot(*offset) + stroke for _, offset, _, stroke in chain[first + 1 :])
+    bound = sum(math.hypot(*offset) + stroke for _, offset, _, stroke, _ in chain[first + 1 :])
+    bound += math.hypot(*robot.tool_offset)
     x, y, z = (float(v) for v in position)
     return ArmReach((x, y, z), bound)
+
+
+def arm_joint_names(robot: RobotSpec) -> tuple[str, ...]:
+    """The movable joints from the base to the tool link, in order: the arm's, which `home`
+    gives one value each."""
+    return tuple(name for kind, *_, name in _chain(robot.urdf, robot.tool_link) if kind != "fixed")
