@@ -5,8 +5,10 @@ PW-UCT tree, world (one PyBullet scene shared by all) and, for the knowledge met
 session on the one knowledge base. The trees take turns of `TURN` rollouts: the next turn goes
 to the skeleton with the least `priority`, effort spent per progress made, weighed by its moves
 beyond the cheapest plan's. A skeleton whose rollouts keep failing early yields to the next; one
-that comes close (its deepest rollout far down its layers) is revisited. A skeleton is opened
-(its world and tree built) on its first turn. Failures are posted as CP points typed by their
+that comes close (its deepest rollout far down its layers) is revisited. Skeletons are opened
+(their world and tree built) by progressive widening, as eTAMP widens its skeleton space: the
+unopened ones compete for a turn only while the opened ones number at most the square root of
+the turns taken (or are all exhausted). Failures are posted as CP points typed by their
 causal graphs, which name kinds and bodies, never the skeleton, so what one skeleton's failures
 taught steers the others' suggestions.
 """
@@ -158,12 +160,17 @@ def plan_goal(
                 observer=blame.observe(branch.session),
             )
 
-        total, best = 0, 0.0
+        total, best, turns = 0, 0.0, 0
         winner: Branch | None = None
         while total < request.max_rollouts:
-            branch = min(branches, key=lambda b: (priority(b, fewest, blame.named), b.index))
+            opened = [b for b in branches if b.search is not None]
+            candidates = opened
+            if len(opened) ** 2 <= turns or all(b.exhausted for b in opened):
+                candidates = branches
+            branch = min(candidates, key=lambda b: (priority(b, fewest, blame.named), b.index))
             if branch.exhausted:
                 break
+            turns += 1
             if branch.search is None:
                 open_branch(branch)
             search = branch.search
