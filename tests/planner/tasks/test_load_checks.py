@@ -142,3 +142,38 @@ def test_plan_refuses_an_impossible_task_in_one_line_before_any_rollout(
         "gripper opens 0.080 m and holds at most 0.060 m (0.01 m clear of each finger): no "
         "grasp can pick it"
     ]
+
+
+BLOCKED = Path(__file__).resolve().parents[3] / "benchmarks" / "suites" / "external" / "blocked"
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (
+            "block: {size: [0.05, 0.05, 0.12]",
+            "block: {size: [0.07, 0.07, 0.12]",
+            "bodies.block.size: block is 0.070 x 0.070 m across, but the gripper opens 0.080 m "
+            "and holds at most 0.060 m (0.01 m clear of each finger): no grasp can pick it",
+        ),
+        (
+            'goal: ["On(block, goal)"]',
+            'goal: ["On(block, stall)", "On(blocker, block)"]',
+            "goal[1]: no place in block (0.050 x 0.050 m) fits blocker: its narrower side, "
+            "0.060 m, is wider than the region at any yaw",
+        ),
+    ],
+)
+def test_a_goal_only_task_is_checked_for_the_bodies_its_goal_moves(
+    tmp_path: Path, old: str, new: str, message: str
+) -> None:
+    text = (BLOCKED / "blocked.yaml").read_text()
+    if "blocker, block" in new:
+        text = text.replace(
+            "blocker: {size: [0.05, 0.05, 0.12]", "blocker: {size: [0.06, 0.06, 0.12]"
+        )
+    assert old in text
+    (tmp_path / "workspace.yaml").write_text((BLOCKED / "workspace.yaml").read_text())
+    path = tmp_path / "blocked.yaml"
+    path.write_text(text.replace(old, new))
+    assert refusal(path) == f"{path}: {message}"
