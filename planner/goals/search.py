@@ -177,15 +177,13 @@ def plan_goal(
             assert search is not None
             turn = min(TURN, request.max_rollouts - total)
 
-            def report(
-                p: SearchProgress, base: int = total - branch.spent, layers: int = search.n_layers
-            ) -> None:
+            def report(p: SearchProgress, base: int = total - branch.spent) -> None:
                 if progress is not None:
                     progress(
                         Progress(
                             rollouts=base + p.rollouts,
                             max_rollouts=request.max_rollouts,
-                            best_depth=p.best_depth / layers,
+                            best_depth=p.best_depth,  # in the running skeleton's layers
                             solved=p.solved,
                             types_active=0,
                             types_activated=0,
