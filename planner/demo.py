@@ -20,7 +20,8 @@ from rich.console import Console
 from rich.table import Table
 
 from planner.display import live_progress
-from planner.run import PlanResult, run_plan
+from planner.result import PlanResult
+from planner.run import run_plan
 
 
 def _run(console: Console, label: str, **kwargs: Any) -> PlanResult:

@@ -15,31 +15,19 @@ import random
 import socket
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from contract.models import Value
 from planner.config import PlanConfig, method_config
-from planner.knowledge.stats import KnowledgeStats
+from planner.result import PlanResult, Progress
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
 
 ANALYTIC_PREFIX = "analytic:"
-
-
-@dataclass(frozen=True)
-class Progress:
-    rollouts: int
-    max_rollouts: int
-    best_depth: float
-    solved: bool
-    types_active: int
-    types_activated: int
-    elapsed_s: float
 
 
 SUGGEST_IN = ("planner", "service")
@@ -84,48 +72,6 @@ class PlanRequest:
     @property
     def label(self) -> str:
         return f"{getattr(self.task, 'name', self.task)} {self.method}"
-
-
-@dataclass
-class PlanResult:
-    task: str
-    method: str
-    seed: int
-    solved: bool
-    rollouts: int
-    rollouts_spent: int
-    # wall_s: from loading the world to the search's end, the time to the binding, for every method
-    wall_s: float
-    sim_s: float
-    sample_s: float
-    bindings: dict[str, Value] | None
-    best_depth: float
-    time_budget_s: float | None = None  # the run's budget in seconds, if it had one
-    timed_out: bool = False  # stopped by time_budget_s before the binding and the rollout cap
-    # What the knowledge session did (zeros for a method without one)
-    knowledge: KnowledgeStats = field(default_factory=KnowledgeStats)
-    # CPU time of this process's other threads during the search (posting points, polls, model
-    # refreshes): each holds the GIL while it runs, so the search waits for it
-    background_cpu_s: float = 0.0
-    kb: str | None = None
-    run: str | None = None
-    notes: list[str] = field(default_factory=list)
-    config: dict[str, dict[str, Any]] = field(default_factory=dict)  # the whole PlanConfig
-
-    def to_json(self) -> dict[str, Any]:
-        """The `cpkb plan --json` dict: flat, the knowledge session's counts beside the run's
-        (its events are in `notes`)."""
-        out = asdict(self)
-        knowledge = out.pop("knowledge")
-        del knowledge["events"]
-        knowledge["kb_parts"] = {
-            part: round(s, 6) for part, s in sorted(knowledge["kb_parts"].items())
-        }
-        knowledge["suggest_cpu_s"] = round(knowledge["suggest_cpu_s"], 6)
-        out.update(knowledge)
-        for key in ("wall_s", "sim_s", "kb_s", "sample_s", "best_depth"):
-            out[key] = round(out[key], 6)
-        return out
 
 
 def load_world(task: str | Path | BindingWorld, seed: int, *, gui: bool = False) -> BindingWorld:
@@ -184,9 +130,24 @@ def run_plan(
     return _plan(request, progress)
 
 
+def _goal_only(task: str | Path | BindingWorld) -> Any:
+    """The task, when it is a task file or shipped task posed by its goal alone; else None."""
+    if not isinstance(task, str | Path) or str(task).startswith(ANALYTIC_PREFIX):
+        return None
+    from planner.tasks import load_task
+
+    loaded = load_task(task)
+    return loaded if not loaded.layers else None
+
+
 def _plan(request: PlanRequest, progress: Callable[[Progress], None] | None) -> PlanResult:
     seed_everything(request.seed)
     started = time.perf_counter()
+    goal_only = _goal_only(request.task)
+    if goal_only is not None:
+        from planner.goals.search import plan_goal
+
+        return plan_goal(request, goal_only, started, progress)
     world = load_world(request.task, request.seed, gui=request.gui)
     try:
         if sampler_registry.uses_knowledge(request.method):

@@ -77,9 +77,13 @@ class WorldGeometry:
     the declared domains. Tuples, not dicts: a geometry keys the process's cache of graphs.
 
     `body_sizes`: each movable body's box `(size_x, size_y, size_z)`; its footprint
-    `(size_x, size_y)` gives the symmetries of its grasps."""
+    `(size_x, size_y)` gives the symmetries of its grasps. `arm`: the arm's URDF when it is not
+    the Panda, so that failure graphs, and with them the knowledge learnt, are about one arm (the
+    Panda's graphs name no arm, as before arms could be chosen, so knowledge stored then still
+    matches)."""
 
     body_sizes: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    arm: str = ""
 
     def size(self, body: str) -> tuple[float, float, float] | None:
         return dict(self.body_sizes).get(body)

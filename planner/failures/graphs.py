@@ -6,7 +6,10 @@ chain, with its producer's constant arguments as context), one produced by a tra
 becomes a *connection* vertex labelled by that operator, and the chain continues through its
 arguments. Constants (bodies, regions, `pose0`, `config0`) are *context* vertexes. Geometric
 backtracking adds the culprit the simulator names: a context vertex for that body, linked to the
-decision vertex that placed it when an earlier decision of this skeleton did.
+decision vertex that placed it when an earlier decision of this skeleton did; so is a movable
+body a placement stacks on (`Sample-pose(body, other_body)`), which is named like any region.
+An arm other than the Panda is a context vertex of every failure (`arm:<its URDF>`), so that
+what is learnt with one arm does not steer another.
 
 Labels are task-independent: operator names, workspace constant and body names, and decision
 kinds. Decision labels stay unique by recency: the latest `#dir` in the graph is `#dir`, the one
@@ -143,6 +146,12 @@ class _Builder:
             self.decisions[var.var] = var
             for position, arg in enumerate(var.producer.args):
                 self.edge(self.context(arg), node_id, f"arg{position}")
+            if var.kind in PLACE_KINDS and len(var.producer.args) > 1:
+                # A place on a movable body's top (stacking) is where that body was put.
+                support = var.producer.args[1]
+                placing = self.placed_by(support, self.skeleton.decisions.index(var))
+                if placing is not None:
+                    self.edge(self.decision(placing), self.context(support), "at")
         return node_id
 
     def placed_by(self, body: str, before_transition: int) -> DecisionVar | None:
@@ -265,6 +274,9 @@ def failure_graph(
     builder = _Builder(skeleton, transition_index)
     builder.nodes["failure"] = Node(id="failure", role="failure", label=check.call.name)
     builder.consume(check.call, "failure")
+    encodings = encodings if encodings is not None else Encodings()
+    if encodings.geometry.arm:
+        builder.edge(builder.context(f"arm:{encodings.geometry.arm}"), "failure", "arm")
     body = culprit if culprit is not None else (check.culprits[0].body if check.culprits else None)
     if body is not None:
         placing = builder.placed_by(body, transition_index)

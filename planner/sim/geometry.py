@@ -18,6 +18,12 @@ def yaw_quat(yaw: float) -> Quat:
     return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
 
 
+def yaw_of(q: Quat) -> float:
+    """The heading of a frame's x axis about the world's z (of an upright body, its yaw)."""
+    axes = rotation(q)
+    return math.atan2(float(axes[1, 0]), float(axes[0, 0]))
+
+
 def compose(a: Pose, b: Pose) -> Pose:
     pos, orn = p.multiplyTransforms(a[0], a[1], b[0], b[1])
     return tuple(pos), tuple(orn)

@@ -20,12 +20,10 @@ from planner.sim.geometry import (
     rotation,
 )
 from planner.sim.motion import Checker, CollisionTally
-from planner.sim.scene import ARM_JOINTS, MAX_FINGER_OPENING, TCP_LINK, Scene
+from planner.sim.scene import Scene
 from planner.tasks import GRASP_APPROACH
+from planner.tasks.checks import FINGER_CLEARANCE, SIDE_GRASP_BELOW_TOP, TOP_GRASP_DEPTH
 
-FINGER_CLEARANCE = 0.01  # each finger stays this far off the body while open
-TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
-SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
 ORIENTATION_TOLERANCE = 0.01  # radians
 IK_REFINEMENTS = 4
 APPROACH_LIFT = 0.02
@@ -83,10 +81,10 @@ def make_grasp(scene: Scene, body: str, direction: str, body_pose: Pose) -> Gras
         finger_axis = int(np.argmax(np.abs(y)))
     width = float(size[finger_axis])
     opening = width / 2 + FINGER_CLEARANCE
-    if opening > MAX_FINGER_OPENING:
+    if opening > scene.max_finger_opening:
         raise GraspError(
             f"{body} is {width:.3f} m wide across the fingers; the gripper opens "
-            f"{2 * MAX_FINGER_OPENING:.2f} m"
+            f"{2 * scene.max_finger_opening:.2f} m"
         )
     tcp = ((float(tcp_local[0]), float(tcp_local[1]), float(tcp_local[2])), quat_from_axes(x, y, z))
     return Grasp(body, direction, tcp, tuple(float(v) for v in approach_local), opening)  # type: ignore[arg-type]
@@ -170,6 +168,7 @@ def solve_ik(
     best_pos, best_ang = math.inf, math.inf
     reached = 0
     least_depth = math.inf  # bookkeeping only: draws nothing, so the restarts stay as seeded
+    link_target = scene.tool_link_target(target)
     for attempt in range(restarts):
         if attempt == 0 and first_guess is not None:
             start = first_guess
@@ -186,14 +185,14 @@ def solve_ik(
         for _ in range(IK_REFINEMENTS):
             solution = p.calculateInverseKinematics(
                 scene.robot,
-                TCP_LINK,
-                target[0],
-                target[1],
+                scene.tool_link,
+                link_target[0],
+                link_target[1],
                 maxNumIterations=iterations,
                 residualThreshold=tolerance / 10,
                 physicsClientId=scene.client,
             )
-            q = tuple(float(v) for v in np.clip(solution[: len(ARM_JOINTS)], low, high))
+            q = tuple(float(v) for v in np.clip(solution[: len(scene.arm_joints)], low, high))
             scene.set_arm(q)
             error = math.dist(scene.tcp()[0], target[0])
             # Stop when converged, or when a refinement no longer halves the error (stuck

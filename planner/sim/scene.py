@@ -1,4 +1,4 @@
-"""A task's scene in one PyBullet client: the Panda, static bodies, movable bodies, collisions.
+"""A task's scene in one PyBullet client: the arm, static bodies, movable bodies, collisions.
 
 The client id lives on the `Scene` object; nothing here is global. Collision queries run
 PyBullet's broadphase once (`performCollisionDetection`) and read every contact at once.
@@ -16,14 +16,10 @@ from dataclasses import dataclass
 import pybullet as p
 import pybullet_data
 
-from planner.sim.geometry import Pose, compose, invert, yaw_quat
+from planner.sim.geometry import Pose, compose, invert, yaw_of, yaw_quat
+from planner.tasks.reach import arm_joint_names
 from planner.tasks.schema import FixedBody, NamedPose, Region, Task
 
-ARM_JOINTS = (0, 1, 2, 3, 4, 5, 6)
-FINGER_JOINTS = (9, 10)
-TCP_LINK = 11  # panda_grasptarget, between the fingertips
-HAND_LINKS = (7, 8, 9, 10, 11)  # flange, hand, fingers: may touch the body they hold
-MAX_FINGER_OPENING = 0.04  # per finger: the gripper opens 0.08 m
 PLACE_CLEARANCE = 0.001  # a placed body floats 1 mm above its support, as the authors do
 
 
@@ -62,12 +58,27 @@ class Scene:
             flags=flags,
             physicsClientId=self.client,
         )
-        self.joint_low = []
-        self.joint_high = []
-        for j in ARM_JOINTS:
-            info = p.getJointInfo(self.robot, j, physicsClientId=self.client)
-            self.joint_low.append(info[8])
-            self.joint_high.append(info[9])
+        infos = [
+            p.getJointInfo(self.robot, j, physicsClientId=self.client)
+            for j in range(p.getNumJoints(self.robot, physicsClientId=self.client))
+        ]
+        by_joint = {info[1].decode(): info[0] for info in infos}
+        # The loader checked that the URDF has the tool link and `home` a value per arm joint.
+        self.arm_joints = tuple(by_joint[name] for name in arm_joint_names(ws.robot))
+        self.tool_link = next(info[0] for info in infos if info[12].decode() == ws.robot.tool_link)
+        self.tool_offset: Pose = (ws.robot.tool_offset, (0.0, 0.0, 0.0, 1.0))
+        # Prismatic fingers are set to the opening a grasp needs; a gripper of revolute
+        # linkages (the xArm's) stays fully open, the held body carried by the tool frame.
+        self.finger_joints = tuple(
+            info[0]
+            for info in infos
+            if info[2] == p.JOINT_PRISMATIC and info[0] not in self.arm_joints
+        )
+        # Everything beyond the last arm joint (flange, hand, fingers) may touch a held body.
+        self.hand_links = tuple(range(self.arm_joints[-1] + 1, len(infos)))
+        self.joint_low = [infos[j][8] for j in self.arm_joints]
+        self.joint_high = [infos[j][9] for j in self.arm_joints]
+        self.max_finger_opening = ws.robot.gripper_opening / 2  # each finger's travel
         self.names: dict[int, str] = {self.robot: "robot"}
         self.ids: dict[str, int] = {}
         statics = [*ws.fixed.values(), *(ws.obstacles[n] for n in task.obstacles)]
@@ -123,7 +134,12 @@ class Scene:
 
     # -- poses -----------------------------------------------------------------------------
     def region(self, name: str) -> Region:
-        return self.task.workspace.regions[name]
+        """A workspace region, or the top face of a movable body where it stands now."""
+        if name not in self.sizes:
+            return self.task.workspace.regions[name]
+        (x, y, z), orn = self.pose(name)
+        size_x, size_y, height = self.sizes[name]
+        return Region(name, (x, y, z + height / 2), (size_x, size_y), yaw_of(orn))
 
     def standing_pose(self, body: str, region: Region, x: float, y: float, yaw: float) -> Pose:
         z = region.center[2] + self.sizes[body][2] / 2 + PLACE_CLEARANCE
@@ -184,28 +200,36 @@ class Scene:
         # One call for all seven joints: five times faster than resetJointState per joint, and
         # the arm is set once per collision check.
         values = [[float(v)] for v in q]
-        if len(values) != len(ARM_JOINTS):
-            raise ValueError(f"expected {len(ARM_JOINTS)} joint values, got {len(values)}")
+        if len(values) != len(self.arm_joints):
+            raise ValueError(f"expected {len(self.arm_joints)} joint values, got {len(values)}")
         p.resetJointStatesMultiDof(
-            self.robot, list(ARM_JOINTS), values, physicsClientId=self.client
+            self.robot, list(self.arm_joints), values, physicsClientId=self.client
         )
 
     def arm(self) -> tuple[float, ...]:
-        states = p.getJointStates(self.robot, ARM_JOINTS, physicsClientId=self.client)
+        states = p.getJointStates(self.robot, self.arm_joints, physicsClientId=self.client)
         return tuple(s[0] for s in states)
 
     def set_fingers(self, opening: float) -> None:
-        for j in FINGER_JOINTS:
+        for j in self.finger_joints:
             p.resetJointState(self.robot, j, opening, physicsClientId=self.client)
 
     def fingers(self) -> float:
-        return p.getJointState(self.robot, FINGER_JOINTS[0], physicsClientId=self.client)[0]
+        if not self.finger_joints:
+            return self.max_finger_opening
+        return p.getJointState(self.robot, self.finger_joints[0], physicsClientId=self.client)[0]
 
     def tcp(self) -> Pose:
         state = p.getLinkState(
-            self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
+            self.robot, self.tool_link, computeForwardKinematics=True, physicsClientId=self.client
         )
-        return tuple(state[4]), tuple(state[5])
+        link: Pose = (tuple(state[4]), tuple(state[5]))
+        return compose(link, self.tool_offset)
+
+    def tool_link_target(self, tcp: Pose) -> Pose:
+        """Where the tool link must be for the tool centre point to be at `tcp` (what IK
+        solves for)."""
+        return compose(tcp, invert(self.tool_offset))
 
     def joint_range(self, index: int) -> tuple[float, float]:
         return self.joint_low[index], self.joint_high[index]
@@ -232,10 +256,13 @@ class Scene:
                 continue
             if {a, b} == {self.robot, held_id}:
                 link = cp[3] if a == self.robot else cp[4]
-                if link in HAND_LINKS:
+                if link in self.hand_links:
                     continue
             if a == b == self.robot:
-                found.append(Contact("robot", depth))
+                # The hand's own links touching each other is its mechanism (the xArm's
+                # gripper linkage), not a collision.
+                if not (cp[3] in self.hand_links and cp[4] in self.hand_links):
+                    found.append(Contact("robot", depth))
                 continue
             mover = a if a in (self.robot, held_id) else b
             other = b if mover == a else a

@@ -11,10 +11,10 @@ from planner.sim.geometry import Pose
 from planner.sim.grasps import Grasp
 from planner.sim.motion import CollisionTally
 from planner.sim.operators import OPERATORS, ArmConfig, Execution
-from planner.sim.scene import MAX_FINGER_OPENING, Scene
+from planner.sim.scene import Scene
 from planner.skeleton import Skeleton
 from planner.tasks import Task, build_skeleton
-from planner.tasks.loader import HOME_CONFIG
+from planner.tasks.loader import HOME_CONFIG, PANDA_URDF
 from planner.world import CheckResult, TransitionOutcome, WorldGeometry
 
 
@@ -33,12 +33,22 @@ class SimState:
 class PyBulletWorld:
     """One task in its own PyBullet client (`self.scene.client`); DIRECT unless `gui`."""
 
-    def __init__(self, task: Task, *, seed: int, gui: bool = False) -> None:
+    def __init__(
+        self,
+        task: Task,
+        *,
+        seed: int,
+        gui: bool = False,
+        scene: Scene | None = None,
+    ) -> None:
+        """`scene`: another world's scene of the same bodies, to share one PyBullet client
+        among the skeletons of one goal (`planner.goals`); its owner closes it."""
         self.task = task
         self.name = task.name
         self.seed = int(seed)
         self.skeleton: Skeleton = build_skeleton(task)
-        self.scene = Scene(task, gui=gui)
+        self._owns_scene = scene is None
+        self.scene = scene if scene is not None else Scene(task, gui=gui)
         self.pose_sources = {
             d.var: (d.producer.args[0], d.producer.args[1])
             for d in self.skeleton.decisions
@@ -46,8 +56,11 @@ class PyBulletWorld:
         }
         self._initial = SimState(
             arm=tuple(task.workspace.robot.home),
-            fingers=MAX_FINGER_OPENING,
-            poses=tuple((n, self.scene.pose(n)) for n in self.scene.movable_names),
+            fingers=self.scene.max_finger_opening,
+            # Where the task puts them, not where a shared scene's last search left them.
+            poses=tuple(
+                (n, self.scene.named_pose(task.bodies[n].pose, n)) for n in self.scene.movable_names
+            ),
             held=None,
             values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),
         )
@@ -63,6 +76,7 @@ class PyBulletWorld:
                 for name in self.scene.movable_names
                 for sx, sy, sz in [self.scene.sizes[name]]
             ),
+            arm="" if task.workspace.robot.urdf == PANDA_URDF else task.workspace.robot.urdf,
         )
         self.restore(self._initial)
 
@@ -133,4 +147,5 @@ class PyBulletWorld:
                 raise ValueError(f"{d.var} must be 3 numbers in [0, 1], got {value!r}")
 
     def close(self) -> None:
-        self.scene.close()
+        if self._owns_scene:
+            self.scene.close()

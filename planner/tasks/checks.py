@@ -1,17 +1,37 @@
-"""Geometry that loads but cannot work: a region too small for its body, a place out of reach.
+"""Geometry that cannot work, found when a task loads, before any rollout.
 
-Pure arithmetic on the task's data (no simulator), so that `load_task` can report it at once;
-the numbers follow the simulator's own rules (`planner.sim.scene.Scene.region_pose`).
+`impossibility` finds what certainly fails (a body wider than the gripper opens, a start pose
+or a goal region beyond the arm's reach, a region narrower than its body): the loader refuses
+the task with it. `geometry_warnings` finds what will likely fail (a region the sampler cannot
+spread its body in, a place beyond the Panda's stated reach): the task loads, with a warning.
+Pure arithmetic on the task's data (no simulator); the numbers follow the simulator's own
+rules (`planner.sim.scene.Scene.region_pose`, `planner.sim.grasps.make_grasp`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-from planner.tasks.schema import LayerSpec, MovableBody, Region, Workspace
+from planner.tasks.reach import ArmReach, arm_reach
+from planner.tasks.schema import Goal, LayerSpec, MovableBody, Region, Workspace
 
 PANDA_SHOULDER_HEIGHT = 0.333  # joint 2 above the base, where the arm's reach is measured from
 PANDA_REACH = 0.855  # the Panda's stated maximum reach from that joint, metres
+FINGER_CLEARANCE = 0.01  # each finger stays this far off the body while open
+TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
+SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
+
+
+def start_region(workspace: Workspace, bodies: dict[str, MovableBody], name: str) -> Region:
+    """The region `name`: the workspace's, or the top face of a movable body where it starts
+    (`On(body, other_body)` stacks on it; the simulator follows the body if it moves)."""
+    if name in workspace.regions:
+        return workspace.regions[name]
+    body = bodies[name]
+    pose = workspace.poses[body.pose]
+    top = workspace.regions[pose.region].center[2] + body.size[2]
+    return Region(name, (*pose.xy, top), (body.size[0], body.size[1]), pose.yaw)
 
 
 def footprint_margin(body: MovableBody) -> float:
@@ -49,7 +69,7 @@ def geometry_warnings(
         tuple(c.args) for layer in layers for c in layer.calls if c.name == "Sample-pose"
     )
     for body_name, region_name in placements:
-        body, region = bodies[body_name], workspace.regions[region_name]
+        body, region = bodies[body_name], start_region(workspace, bodies, region_name)
         margin = footprint_margin(body)
         if min(region.size) < 2 * margin:
             found.append(
@@ -77,3 +97,102 @@ def geometry_warnings(
                 f"beyond the Panda's {PANDA_REACH} m reach"
             )
     return tuple(found)
+
+
+@dataclass(frozen=True)
+class Impossible:
+    """What cannot work, and the task file's field it is written in."""
+
+    where: str
+    message: str
+
+
+def max_held_width(workspace: Workspace) -> float:
+    """The widest body side the gripper closes across, clearance left on both fingers."""
+    return workspace.robot.gripper_opening - 2 * FINGER_CLEARANCE
+
+
+def _tool_heights(surface: float, body: MovableBody) -> tuple[float, float]:
+    """The lowest and highest tool centre of any grasp of `body` standing on `surface`."""
+    height = body.size[2]
+    top = surface + height - min(TOP_GRASP_DEPTH, height / 2)
+    side = surface + height / 2 + max(0.0, height / 2 - SIDE_GRASP_BELOW_TOP)
+    return min(top, side), max(top, side)
+
+
+def _nearest(reach: ArmReach, region: Region, margin: float, heights: tuple[float, float]) -> float:
+    """The least distance from the arm's shoulder to a tool centre over the body's centres in
+    `region` (its rectangle shrunk by `margin`) at the given heights."""
+    half_x = max(0.0, region.size[0] / 2 - margin)
+    half_y = max(0.0, region.size[1] / 2 - margin)
+    c, s = math.cos(region.yaw), math.sin(region.yaw)
+    dx, dy = reach.shoulder[0] - region.center[0], reach.shoulder[1] - region.center[1]
+    local_x, local_y = c * dx + s * dy, -s * dx + c * dy
+    out_x = max(0.0, abs(local_x) - half_x)
+    out_y = max(0.0, abs(local_y) - half_y)
+    low, high = heights
+    out_z = max(0.0, low - reach.shoulder[2], reach.shoulder[2] - high)
+    return math.sqrt(out_x**2 + out_y**2 + out_z**2)
+
+
+def impossibility(
+    workspace: Workspace,
+    bodies: dict[str, MovableBody],
+    layers: tuple[LayerSpec, ...],
+    goals: tuple[Goal, ...],
+) -> Impossible | None:
+    """The first thing in the task that no binding can make work, or None."""
+    reach = arm_reach(workspace.robot)
+    robot = workspace.robot.urdf
+    grasped = [c.args[0] for layer in layers for c in layer.calls if c.name == "Inv-kin"]
+    # A goal-only task moves every body whose goal does not hold where it starts.
+    grasped += [g.body for g in goals if workspace.poses[bodies[g.body].pose].region != g.region]
+    picked = dict.fromkeys(grasped)
+    widest = max_held_width(workspace)
+    for name in picked:
+        body = bodies[name]
+        narrow = min(body.size[:2])
+        if narrow > widest:
+            return Impossible(
+                f"bodies.{name}.size",
+                f"{name} is {body.size[0]:.3f} x {body.size[1]:.3f} m across, but the gripper "
+                f"opens {workspace.robot.gripper_opening:.3f} m and holds at most {widest:.3f} m "
+                f"({FINGER_CLEARANCE} m clear of each finger): no grasp can pick it",
+            )
+        pose = workspace.poses[body.pose]
+        surface = workspace.regions[pose.region].center[2]
+        start = Region(pose.name, (*pose.xy, surface), (0.0, 0.0))
+        distance = _nearest(reach, start, 0.0, _tool_heights(surface, body))
+        if distance > reach.bound:
+            return Impossible(
+                f"bodies.{name}.pose",
+                f"{name} starts at {body.pose}, {distance:.2f} m from the arm's shoulder: "
+                f"beyond the {reach.bound:.2f} m {robot} reaches at most, no grasp can pick it",
+            )
+    placements = [
+        (f"skeleton[{i}].decision", *layer.calls[0].args)
+        for i, layer in enumerate(layers)
+        if layer.calls[0].name == "Sample-pose"
+    ]
+    placements += [(f"goal[{i}]", g.body, g.region) for i, g in enumerate(goals)]
+    for where, body_name, region_name in placements:
+        body, region = bodies[body_name], start_region(workspace, bodies, region_name)
+        if min(body.size[:2]) > min(region.size):
+            return Impossible(
+                where,
+                f"no place in {region.name} ({region.size[0]:.3f} x {region.size[1]:.3f} m) "
+                f"fits {body.name}: its narrower side, {min(body.size[:2]):.3f} m, is wider "
+                "than the region at any yaw",
+            )
+    for i, goal in enumerate(goals):
+        body, region = bodies[goal.body], start_region(workspace, bodies, goal.region)
+        margin = footprint_margin(body)
+        distance = _nearest(reach, region, margin, _tool_heights(region.center[2], body))
+        if distance > reach.bound:
+            return Impossible(
+                f"goal[{i}]",
+                f"On({goal.body}, {goal.region}): every place in {goal.region} is at least "
+                f"{distance:.2f} m from the arm's shoulder, beyond the {reach.bound:.2f} m "
+                f"{robot} reaches at most: no operator can put {goal.body} there",
+            )
+    return None

@@ -15,7 +15,8 @@ from typing import Any
 
 import yaml
 
-from planner.tasks.checks import geometry_warnings
+from planner.tasks.checks import geometry_warnings, impossibility
+from planner.tasks.reach import arm_joint_names, arm_reach
 from planner.tasks.schema import (
     BoxPart,
     Call,
@@ -34,6 +35,11 @@ from planner.tasks.schema import (
 
 GRASP_DIRECTIONS = ("front", "right", "top", "back", "left")
 HOME_CONFIG = "config0"
+# A workspace that names no tool link or gripper opening has the Panda's (panda.urdf's link
+# between the fingertips; the Franka hand opens 0.08 m).
+PANDA_URDF = "franka_panda/panda.urdf"  # the default arm (see `WorldGeometry.arm`)
+PANDA_TOOL_LINK = "panda_grasptarget"
+PANDA_GRIPPER_OPENING = 0.08
 # operator -> (argument kinds, output kinds); kinds name what an argument must refer to.
 OPERATORS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "Sample-grasp": (("body",), ("#dir",)),
@@ -170,15 +176,33 @@ def load_workspace(path: Path) -> Workspace:
     data = r.mapping(_read_yaml(path), "top level")
     r.only(data, {"workspace", "robot", "fixed", "obstacles", "regions", "poses"}, "")
     robot_raw = r.mapping(r.get(data, "robot", ""), "robot")
-    r.only(robot_raw, {"urdf", "base", "home"}, "robot")
+    allowed = {"urdf", "base", "home", "tool_link", "tool_offset", "gripper_opening"}
+    r.only(robot_raw, allowed, "robot")
     home = r.get(robot_raw, "home", "robot")
-    if not isinstance(home, list) or len(home) != 7:
-        raise r.fail("robot.home", "expected the 7 arm joint angles (radians)")
+    if not isinstance(home, list) or not home:
+        raise r.fail("robot.home", "expected the arm's joint angles (radians)")
     robot = RobotSpec(
         urdf=str(r.get(robot_raw, "urdf", "robot")),
         base=r.vector(robot_raw.get("base", [0, 0, 0]), 3, "robot.base"),
-        home=r.vector(home, 7, "robot.home"),
+        home=r.vector(home, len(home), "robot.home"),
+        tool_offset=r.vector(robot_raw.get("tool_offset", [0, 0, 0]), 3, "robot.tool_offset"),
+        tool_link=r.name(robot_raw.get("tool_link", PANDA_TOOL_LINK), "robot.tool_link"),
+        gripper_opening=r.number(
+            robot_raw.get("gripper_opening", PANDA_GRIPPER_OPENING),
+            "robot.gripper_opening",
+            positive=True,
+        ),
     )
+    try:
+        arm_reach(robot)
+        joints = arm_joint_names(robot)
+    except TaskError as exc:
+        raise r.fail("robot", str(exc)) from None
+    if len(joints) != len(robot.home):
+        raise r.fail(
+            "robot.home",
+            f"expected {len(joints)} joint angles ({', '.join(joints)}), got {len(robot.home)}",
+        )
     fixed = _named_bodies(r, r.get(data, "fixed", ""), "fixed")
     obstacles = _named_bodies(r, data.get("obstacles"), "obstacles")
     clash = sorted(set(fixed) & set(obstacles))
@@ -262,9 +286,11 @@ def _check_arguments(
                 raise r.fail(
                     where, f"{arg} is a {have} output, but {call.name} needs a {kind} here"
                 )
-        elif arg not in task_names[kind]:
+        elif arg not in task_names[kind] and not (kind == "region" and arg in task_names["body"]):
             known = ", ".join(sorted(task_names[kind])) or "none"
             raise r.fail(where, f"{arg!r} is not a {kind} of this task (known: {known})")
+    if call.name == "Sample-pose" and call.args[0] == call.args[1]:
+        raise r.fail(where, f"{call.args[0]} cannot stand on itself")
     for out, kind in zip(call.outputs, out_kinds, strict=True):
         if out in produced:
             raise r.fail(where, f"{out} is produced twice")
@@ -424,7 +450,8 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         "config": {HOME_CONFIG},
         "traj": set(),
     }
-    layers = _layers(r, r.get(data, "skeleton", ""), names)
+    # A task without a skeleton is posed by its goal alone (`planner.goals` finds skeletons).
+    layers = _layers(r, data["skeleton"], names) if "skeleton" in data else ()
     goals = []
     raw_goal = r.get(data, "goal", "")
     if not isinstance(raw_goal, list) or not raw_goal:
@@ -432,17 +459,23 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
     for i, g in enumerate(raw_goal):
         m = _GOAL.match(g) if isinstance(g, str) else None
         if m is None:
-            raise r.fail(f"goal[{i}]", f"expected 'On(body, region)', got {g!r}")
-        if m.group(2) not in bodies or m.group(3) not in workspace.regions:
+            raise r.fail(
+                f"goal[{i}]", f"expected 'On(body, region)' or 'On(body, other_body)', got {g!r}"
+            )
+        supports = set(workspace.regions) | (set(bodies) - {m.group(2)})
+        if m.group(2) not in bodies or m.group(3) not in supports:
             raise r.fail(f"goal[{i}]", f"{g!r} names an unknown body or region")
         placements = {c.args for layer in layers for c in layer.calls if c.name == "Sample-pose"}
-        if (m.group(2), m.group(3)) not in placements:
+        if layers and (m.group(2), m.group(3)) not in placements:
             raise r.fail(
                 f"goal[{i}]",
                 f"no Sample-pose({m.group(2)}, {m.group(3)}) in the skeleton puts "
                 f"{m.group(2)} in {m.group(3)}",
             )
         goals.append(Goal(m.group(1), m.group(2), m.group(3)))
+    impossible = impossibility(workspace, bodies, layers, tuple(goals))
+    if impossible is not None:
+        raise r.fail(impossible.where, impossible.message)
     settings_raw = r.mapping(data.get("settings") or {}, "settings")
     defaults = PlannerSettings()
     r.only(settings_raw, set(defaults.__dataclass_fields__), "settings")

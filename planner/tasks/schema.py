@@ -56,9 +56,17 @@ class NamedPose:
 
 @dataclass(frozen=True)
 class RobotSpec:
+    """The arm: its URDF (in pybullet_data or an absolute path), where its base stands, its
+    home configuration (`config0`, one value per joint from the base to the tool link), the
+    tool centre point between the fingertips (`tool_offset` along the axes of `tool_link`'s
+    frame), and how wide its gripper opens (metres, between the fingers)."""
+
     urdf: str
     base: Vec3
     home: tuple[float, ...]
+    tool_link: str
+    gripper_opening: float
+    tool_offset: Vec3 = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,8 @@
 """A directory of task files as a suite: which of its tasks are targets.
 
 A file with `role: target` is one; where no file declares a role, every task file that no
-other file of the directory names as a predecessor is one. Files without a `skeleton` (a
-workspace, the suite's index) are not tasks.
+other file of the directory names as a predecessor is one. Files without `bodies` and a
+`goal` (a workspace, the suite's index) are not tasks; a task may leave out its skeleton.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def _is_task_file(path: Path) -> bool:
         data = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError):
         return True  # loading it names the problem
-    return isinstance(data, dict) and "skeleton" in data
+    return isinstance(data, dict) and "bodies" in data and "goal" in data
 
 
 def suite_tasks(directory: Path) -> dict[Path, Task]:
@@ -35,7 +35,7 @@ def suite_targets(directory: Path) -> list[Path]:
     """The target task files of a suite directory, in path order."""
     tasks = suite_tasks(directory)
     if not tasks:
-        raise TaskError(f"{directory}: no task files (YAML with a `skeleton`) in it")
+        raise TaskError(f"{directory}: no task files (YAML with `bodies` and a `goal`) in it")
     if any(t.role is not None for t in tasks.values()):
         return [p for p, t in tasks.items() if t.role == "target"]
     named = {Path(p) for t in tasks.values() for p in t.predecessors if "/" in p}

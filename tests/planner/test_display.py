@@ -9,7 +9,7 @@ import pytest
 from rich.console import Console
 
 from planner.display import live_progress
-from planner.run import Progress
+from planner.result import Progress
 
 
 def _final_line(width: int, label: str, types_active: int, types_activated: int) -> str:

@@ -64,10 +64,12 @@ def test_ik_reaches_a_reachable_pose_and_not_an_unreachable_one(desk: PyBulletWo
 
 
 def test_an_unreachable_pose_fails_inv_kin_with_the_ik_error(tmp_path: Path) -> None:
+    """A pose within the loader's sound reach bound (1.09 m from the Panda's shoulder) that
+    the arm does not reach: the task loads, and Inv-kin says why it fails."""
     workspace = (data_dir() / "workspaces" / "tabletop.yaml").read_text()
     workspace = workspace.replace(
-        "regions:\n", "regions:\n  far: {center: [1.6, 0.0, 0.0], size: [0.2, 0.2]}\n"
-    ).replace("poses:\n", "poses:\n  farpose: {region: far, xy: [1.6, 0.0]}\n")
+        "regions:\n", "regions:\n  far: {center: [1.05, 0.0, 0.0], size: [0.2, 0.2]}\n"
+    ).replace("poses:\n", "poses:\n  farpose: {region: far, xy: [1.05, 0.0]}\n")
     (tmp_path / "far.yaml").write_text(workspace)
     task = (data_dir() / "desk.yaml").read_text()
     task = task.replace("workspace: tabletop", "workspace: far.yaml").replace("pose0", "farpose")
@@ -79,7 +81,7 @@ def test_an_unreachable_pose_fails_inv_kin_with_the_ik_error(tmp_path: Path) -> 
         world.close()
     assert not out.ok and out.failed.call.name == "Inv-kin"
     assert "no IK solution" in out.failed.reason and "best error" in out.failed.reason
-    assert out.failed.detail["position_error"] > 0.5
+    assert out.failed.detail["position_error"] > 0.1
 
 
 @pytest.mark.parametrize(("direction", "culprit"), [("left", "obstacle1"), ("right", "obstacle2")])

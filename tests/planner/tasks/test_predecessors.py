@@ -134,7 +134,7 @@ def test_a_suite_directory_lists_its_targets(tmp_path: Path) -> None:
 
 def test_shipped_tasks_have_no_warnings_and_bad_geometry_is_named(tmp_path: Path) -> None:
     assert all(load_task(n).warnings == () for n in ("deskP", "desk", "regrasp", "pack"))
-    wide = load_task(str(write_task(tmp_path / "wide.yaml", size="[0.12, 0.25, 0.1]")))
+    wide = load_task(str(write_task(tmp_path / "wide.yaml", size="[0.05, 0.25, 0.1]")))
     assert len(wide.warnings) == 1
     assert "region3 (0.200 x 0.200 m) cannot hold body (0.250 m" in wide.warnings[0]
     workspace = (data_dir() / "workspaces" / "tabletop.yaml").read_text()

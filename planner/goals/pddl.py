@@ -1,0 +1,154 @@
+"""Skeletons for a goal-only task: a PDDL domain from cpkb's operators, solved by K*.
+
+cpkb's operators compose into two symbolic actions: *pick* (`Sample-grasp`, then `Inv-kin`,
+`Plan-motion`, `Move-Pick`) and *place* (`Sample-pose`, then `Inv-kin`, `Plan-motion`,
+`Move-Place`), each on a region or on a movable body's top face (stacking). The domain says
+nothing of geometry: a body walled in can be picked symbolically, and the binding search finds
+out that it cannot. So the planner is asked for the `k` cheapest plans, not one (top-k
+planning), and the search shares its effort among them (`planner.goals.search`).
+
+The planner is K* (`kstar-planner` on PyPI, IBM Research, GPL-3: Fast Downward's top-k
+search). It runs as its own process (`python -m kstar_planner`), so cpkb (MIT) only exchanges
+PDDL text and plans with it.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from planner.tasks.schema import Task, TaskError
+
+DOMAIN = """\
+(define (domain cpkb)
+  (:requirements :strips :typing)
+  (:types body region)
+  (:predicates (on ?b - body ?r - region) (on-body ?b - body ?s - body)
+               (holding ?b - body) (handempty) (clear ?b - body))
+  (:action pick
+    :parameters (?b - body ?r - region)
+    :precondition (and (handempty) (on ?b ?r) (clear ?b))
+    :effect (and (holding ?b) (not (handempty)) (not (on ?b ?r)) (not (clear ?b))))
+  (:action unstack
+    :parameters (?b - body ?s - body)
+    :precondition (and (handempty) (on-body ?b ?s) (clear ?b))
+    :effect (and (holding ?b) (not (handempty)) (not (on-body ?b ?s)) (not (clear ?b))
+                 (clear ?s)))
+  (:action place
+    :parameters (?b - body ?r - region)
+    :precondition (holding ?b)
+    :effect (and (on ?b ?r) (handempty) (clear ?b) (not (holding ?b))))
+  (:action stack
+    :parameters (?b - body ?s - body)
+    :precondition (and (holding ?b) (clear ?s))
+    :effect (and (on-body ?b ?s) (handempty) (clear ?b) (not (holding ?b)) (not (clear ?s))))
+)
+"""
+PLANNER_TIMEOUT_S = 60
+_PLAN = re.compile(r"^Plan \d+, of cost ([\d.]+)$")
+_ACTION = re.compile(r"^\d+\. \((\S+) (\S+) (\S+)\)$")
+
+
+@dataclass(frozen=True)
+class Move:
+    """One pick and place: `body` from where it stands to `place` (a region or a body)."""
+
+    body: str
+    place: str
+
+
+@dataclass(frozen=True)
+class Plan:
+    moves: tuple[Move, ...]
+    cost: float
+
+
+def _name(text: str) -> str:
+    """A task name as a PDDL object (PDDL is case-insensitive; K* answers in lower case)."""
+    return text.lower()
+
+
+def problem(task: Task) -> str:
+    """The task's start and goal as a PDDL problem: every body on its start pose's region."""
+    regions = " ".join(_name(r) for r in task.workspace.regions)
+    bodies = " ".join(_name(b) for b in task.bodies)
+    start = [
+        f"(on {_name(b.name)} {_name(task.workspace.poses[b.pose].region)}) (clear {_name(b.name)})"
+        for b in task.bodies.values()
+    ]
+    goals = [
+        f"(on {_name(g.body)} {_name(g.region)})"
+        if g.region in task.workspace.regions
+        else f"(on-body {_name(g.body)} {_name(g.region)})"
+        for g in task.goal
+    ]
+    return (
+        f"(define (problem {_name(task.name)}) (:domain cpkb)\n"
+        f"  (:objects {bodies} - body {regions} - region)\n"
+        f"  (:init (handempty) {' '.join(start)})\n"
+        f"  (:goal (and (handempty) {' '.join(goals)})))\n"
+    )
+
+
+def parse_plans(text: str, names: dict[str, str]) -> list[Plan]:
+    """K*'s printed plans as moves, names given back their task spelling."""
+    plans: list[Plan] = []
+    actions: list[tuple[str, str, str]] = []
+    cost = 0.0
+
+    def close() -> None:
+        if actions:
+            puts = [Move(names[b], names[p]) for a, b, p in actions if a in ("place", "stack")]
+            plans.append(Plan(tuple(puts), cost))
+
+    for line in text.splitlines():
+        line = line.strip()
+        if (m := _PLAN.match(line)) is not None:
+            close()
+            actions, cost = [], float(m.group(1))
+        elif (m := _ACTION.match(line)) is not None:
+            actions.append((m.group(1), m.group(2), m.group(3)))
+    close()
+    return plans
+
+
+def redundant(task: Task, plan: Plan) -> bool:
+    """Whether a move puts a body back on the place it was taken from (a symbolic no-op: cpkb
+    does not shift a body within its region), or the goal holds before the last move (the
+    moves after it cannot help; the shorter plan is among the others)."""
+    where = {b.name: task.workspace.poses[b.pose].region for b in task.bodies.values()}
+    for i, move in enumerate(plan.moves):
+        if where[move.body] == move.place:
+            return True
+        where[move.body] = move.place
+        if i < len(plan.moves) - 1 and all(where[g.body] == g.region for g in task.goal):
+            return True
+    return False
+
+
+def top_plans(task: Task, k: int) -> list[Plan]:
+    """The `k` cheapest plans K* finds for the task, the redundant ones left out, cheapest
+    first (K*'s order among plans of one cost)."""
+    names = {_name(n): n for n in (*task.workspace.regions, *task.bodies)}
+    with tempfile.TemporaryDirectory(prefix="cpkb-pddl-") as folder:
+        domain, prob = Path(folder) / "domain.pddl", Path(folder) / "problem.pddl"
+        domain.write_text(DOMAIN)
+        prob.write_text(problem(task))
+        command = [sys.executable, "-m", "kstar_planner", str(domain), str(prob), "-k", str(k)]
+        try:
+            out = subprocess.run(
+                command, capture_output=True, text=True, timeout=PLANNER_TIMEOUT_S, cwd=folder
+            )
+        except subprocess.TimeoutExpired:
+            raise TaskError(
+                f"{task.source}: goal: the PDDL planner found no plan in {PLANNER_TIMEOUT_S} s"
+            ) from None
+    plans = [p for p in parse_plans(out.stdout, names) if not redundant(task, p)]
+    if not plans:
+        detail = out.stderr.strip().splitlines()[-1:] or ["no plan"]
+        raise TaskError(f"{task.source}: goal: the PDDL planner found no plan ({detail[0]})")
+    return sorted(plans, key=lambda p: p.cost)

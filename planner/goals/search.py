@@ -1,0 +1,234 @@
+"""Binding search across the skeletons of a goal-only task, effort shared as eTAMP does.
+
+K* gives the cheapest plans (`planner.goals.pddl`); each becomes a skeleton with its own
+PW-UCT tree, world (one PyBullet scene shared by all) and, for the knowledge methods, its own
+session on the one knowledge base. The trees take turns of `TURN` rollouts: the next turn goes
+to the skeleton with the least `priority`, effort spent per progress made, weighed by its moves
+beyond the cheapest plan's. A skeleton whose rollouts keep failing early yields to the next; one
+that comes close (its deepest rollout far down its layers) is revisited. Skeletons are opened
+(their world and tree built) by progressive widening, as eTAMP widens its skeleton space: the
+unopened ones compete for a turn only while the opened ones number at most the square root of
+the turns taken (or are all exhausted). Failures are posted as CP points typed by their
+causal graphs, which name kinds and bodies, never the skeleton, so what one skeleton's failures
+taught steers the others' suggestions.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass
+from typing import Any
+
+from planner.goals.pddl import Plan, top_plans
+from planner.goals.skeletons import describe, skeleton_task
+from planner.search import PWUCT, SearchProgress
+from planner.search import samplers as sampler_registry
+from planner.tasks.schema import Task
+from planner.world import TransitionOutcome
+
+PLANS = 40  # plans asked of K*, cheapest first (the redundant ones are dropped)
+TURN = 10  # rollouts a skeleton runs before the next is chosen
+PROGRESS_FLOOR = 0.25  # the progress credited to a skeleton not yet run
+
+
+@dataclass
+class Branch:
+    """One skeleton's search: its plan, and once opened, its world, sampler and tree."""
+
+    plan: Plan
+    index: int
+    world: Any = None
+    sampler: Any = None
+    session: Any = None
+    search: PWUCT | None = None
+    spent: int = 0
+    progress: float = 0.0  # the deepest rollout's share of the skeleton's layers
+    exhausted: bool = False
+    found: dict[str, Any] | None = None
+
+
+class Blame:
+    """Counts the movable bodies failed checks name as culprits (other than the body the
+    check acts on), and passes every transition on to the search's own observer."""
+
+    def __init__(self, movable: set[str]) -> None:
+        self.movable = movable
+        self.named: set[str] = set()
+
+    def observe(self, inner: Any) -> Any:
+        blame = self
+
+        class Observer:
+            def on_transition(
+                self, index: int, bindings: dict, outcome: TransitionOutcome, rollout: int
+            ) -> None:
+                failed = outcome.failed
+                if failed is not None:
+                    actor = failed.call.args[0] if failed.call.args else None
+                    blame.named.update(
+                        c.body
+                        for c in failed.culprits
+                        if c.body in blame.movable and c.body != actor
+                    )
+                if inner is not None:
+                    inner.on_transition(index, bindings, outcome, rollout)
+
+            def on_rollout_end(self, rollout: int) -> None:
+                if inner is not None:
+                    inner.on_rollout_end(rollout)
+
+        return Observer()
+
+
+def priority(branch: Branch, fewest_moves: int, blamed: set[str]) -> float:
+    """Effort spent (with the coming turn) per progress made, times one plus the moves beyond
+    the cheapest plan's, a move of a body some failure collided with not counted (it may clear
+    the way): the least goes next; an exhausted tree never does."""
+    if branch.exhausted:
+        return float("inf")
+    clearing = sum(move.body in blamed for move in branch.plan.moves[:-1])
+    extra = max(0, len(branch.plan.moves) - fewest_moves - clearing)
+    progress = branch.progress if branch.spent else PROGRESS_FLOOR
+    return (branch.spent + TURN) * (1 + extra) / max(progress, 1e-3)
+
+
+def plan_goal(
+    request: Any, task: Task, started: float, progress: Callable[[Any], None] | None
+) -> Any:
+    """`run_plan` for a task without a skeleton (see the module docstring)."""
+    from planner.knowledge.stats import KnowledgeStats
+    from planner.result import PlanResult, Progress
+    from planner.sim.world import PyBulletWorld
+
+    plans = top_plans(task, PLANS)
+    branches = [Branch(plan, i) for i, plan in enumerate(plans)]
+    fewest = min(len(p.moves) for p in plans)
+    blame = Blame(set(task.bodies))
+    config = request.config
+    knowledge = sampler_registry.uses_knowledge(request.method)
+    with ExitStack() as stack:
+        client = None
+        if knowledge:
+            from client import CpkbClient
+
+            if request.kb_url is None:
+                raise ValueError(f"{request.method} needs a knowledge base: give kb_url")
+            client = stack.enter_context(CpkbClient(request.kb_url, token=request.token))
+            client.create_kb(request.kb, exist_ok=True)
+        scene = None
+
+        def open_branch(branch: Branch) -> None:
+            nonlocal scene
+            skeleton = skeleton_task(task, branch.plan)
+            world = PyBulletWorld(skeleton, seed=request.seed, gui=request.gui, scene=scene)
+            if scene is None:
+                scene = world.scene
+                stack.callback(world.scene.close)
+            branch.world = world
+            if client is not None:
+                from planner.knowledge import KnowledgeSession
+
+                branch.session = KnowledgeSession(
+                    client,
+                    request.kb,
+                    world,
+                    worker=request.worker or f"{socket.gethostname()}:{os.getpid()}",
+                    lookahead=config.cp_bo.lookahead,
+                    local=request.suggest_in == "planner",
+                    config=config.knowledge,
+                )
+                stack.callback(branch.session.close)
+                if config.cp_bo.prematch:
+                    branch.session.prematch()
+            branch.sampler = sampler_registry.make(
+                request.method,
+                seed=request.seed,
+                world=world,
+                knowledge=branch.session,
+                config=config,
+            )
+            stack.callback(branch.sampler.close)
+            branch.search = PWUCT(
+                world,
+                branch.sampler,
+                seed=request.seed,
+                config=config.search,
+                observer=blame.observe(branch.session),
+            )
+
+        total, best, turns = 0, 0.0, 0
+        winner: Branch | None = None
+        while total < request.max_rollouts:
+            opened = [b for b in branches if b.search is not None]
+            candidates = opened
+            if len(opened) ** 2 <= turns or all(b.exhausted for b in opened):
+                candidates = branches
+            branch = min(candidates, key=lambda b: (priority(b, fewest, blame.named), b.index))
+            if branch.exhausted:
+                break
+            turns += 1
+            if branch.search is None:
+                open_branch(branch)
+            search = branch.search
+            assert search is not None
+            turn = min(TURN, request.max_rollouts - total)
+
+            def report(p: SearchProgress, base: int = total - branch.spent) -> None:
+                if progress is not None:
+                    progress(
+                        Progress(
+                            rollouts=base + p.rollouts,
+                            max_rollouts=request.max_rollouts,
+                            best_depth=p.best_depth,  # in the running skeleton's layers
+                            solved=p.solved,
+                            types_active=0,
+                            types_activated=0,
+                            elapsed_s=time.perf_counter() - started,
+                        )
+                    )
+
+            outcome = search.run(branch.spent + turn, stop_at_first=True, progress=report)
+            total += outcome.rollouts_spent - branch.spent
+            branch.spent = outcome.rollouts_spent
+            branch.progress = outcome.best_depth / search.n_layers
+            best = max(best, branch.progress)
+            branch.exhausted = outcome.exhausted
+            if outcome.solved:
+                branch.found = outcome.bindings
+                winner = branch
+                break
+        opened = [b for b in branches if b.search is not None]
+        if winner is not None and winner.session is not None and winner.found is not None:
+            winner.session.add_found(winner.found, winner.spent)
+        sessions = [b.session for b in opened if b.session is not None]
+        tried = ", ".join(f"{b.index + 1}: {b.spent}" for b in opened)
+        notes = [f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}"]
+        if winner is not None:
+            notes.append(
+                f"solved by skeleton {winner.index + 1} of {len(plans)} ({describe(winner.plan)})"
+            )
+        return PlanResult(
+            task=task.name,
+            method=request.method,
+            seed=request.seed,
+            solved=winner is not None,
+            rollouts=total,
+            rollouts_spent=total,
+            wall_s=time.perf_counter() - started,
+            sim_s=sum(b.search.sim_s for b in opened if b.search is not None),
+            sample_s=sum(b.search.sample_s for b in opened if b.search is not None),
+            bindings=winner.found if winner is not None else None,
+            best_depth=best,
+            knowledge=KnowledgeStats(
+                types_activated=sum(s.stats.types_activated for s in sessions),
+                points_posted=sum(s.points_posted for s in sessions),
+                kb_s=sum(s.stats.kb_s for s in sessions),
+            ),
+            kb=request.kb if knowledge else None,
+            notes=notes,
+            config=config.to_dict(),
+        )
