@@ -44,7 +44,7 @@ class _Recorded:
 
     def model(self, type_id: str) -> TypeModel:
         held = self._models[type_id]
-        return TypeModel(held.space, held.predictor(), held.version, held.n_fitted, 0)
+        return TypeModel(held.space, held.model(), held.version, held.n_fitted, 0)
 
 
 class _FixedPending:
@@ -63,9 +63,7 @@ class _FixedPending:
 def _uncached(model: Any) -> Any:
     """A copy of a planner's `_Model` without its cached predictor or encodings."""
     fresh = copy.copy(model)
-    for name in ("_predictor", "_combined", "_own_z", "_others_z"):
-        if hasattr(fresh, name):
-            setattr(fresh, name, None)
+    fresh._combined, fresh._own_z, fresh._others_z = None, None, None
     fresh.own, fresh.others = list(model.own), list(model.others)
     return fresh
 
@@ -129,7 +127,7 @@ def replay(path: Path, repeats: int) -> int:
         spent = 0.0
         for r in recorded:
             source, book = _Recorded(r["models"]), _FixedPending(r["pending"])
-            options = {k: r[k] for k in ("key", "config", "shared", "hints", "preferred")}
+            options = {k: r[k] for k in ("key", "config", "hints", "preferred")}
             started = time.thread_time()
             answer = suggest(source, r["request"], book, **options)
             spent += time.thread_time() - started

@@ -253,7 +253,7 @@ def report(out_dir: str | Path, settings: BenchSettings, console: Console) -> No
             paths += write_summary(by_kind, out_dir, f"summary_by_kind{suffix}", baseline)
         if not suffix:
             title = f"cpkb bench: {len(records)} runs in {out_dir}"
-            console.print(whole_names_table(headers(baseline), table_rows(rows), title))
+            console.print(whole_names_table(headers(baseline), table_rows(rows), title, names=2))
             console.print(notes(baseline))
     paths += write_plots(records, out_dir, settings.tasks, settings.methods)
     if settings.concurrent > 1:

@@ -26,9 +26,14 @@ def shared_directory(names: Sequence[str]) -> str:
 
 
 def whole_names_table(
-    headers: Sequence[str], rows: Sequence[Sequence[str]], title: str, **options: Any
+    headers: Sequence[str],
+    rows: Sequence[Sequence[str]],
+    title: str,
+    *,
+    names: int = 1,
+    **options: Any,
 ) -> Any:
-    """A rich Table of `rows` whose first column is a name that shows whole."""
+    """A rich Table of `rows` whose first `names` columns (a task, a method) show whole."""
     from rich.table import Table
 
     prefix = shared_directory([row[0] for row in rows])
@@ -36,8 +41,9 @@ def whole_names_table(
         title += f" (tasks under {prefix})"
     table = Table(*headers, title=title, **options)
     shown = [[row[0].removeprefix(prefix), *row[1:]] for row in rows]
-    table.columns[0].min_width = max((len(row[0]) for row in shown), default=0)
-    table.columns[0].overflow = "fold"
+    for k in range(names):
+        table.columns[k].min_width = max((len(row[k]) for row in shown), default=0)
+        table.columns[k].overflow = "fold"
     for row in shown:
         table.add_row(*row)
     return table
