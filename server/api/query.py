@@ -23,8 +23,9 @@ def query_names(route: APIRoute) -> frozenset[str]:
     return frozenset(_declared(route.dependant))
 
 
-def known_query_only(request: Request) -> None:
-    """An app-wide dependency: refuse query parameters the matched route does not declare."""
+async def known_query_only(request: Request) -> None:
+    """An app-wide dependency: refuse query parameters the matched route does not declare
+    (async: it does no I/O, so it never waits for a worker thread behind blocked writes)."""
     route = request.scope.get("route")
     if not isinstance(route, APIRoute):
         return

@@ -39,7 +39,7 @@ class LosesFirstAnswer(httpx.BaseTransport):
 
 @pytest.fixture
 def server(db_url: str, tmp_path: Path) -> Iterator[str]:
-    env = {"CPKB_SURROGATE_ENABLED": "false"}
+    env = {"CPKB_SURROGATE__ENABLED": "false"}
     with run_live_server(db_url, tmp_path / "server.log", env=env) as live:
         yield live.url
 

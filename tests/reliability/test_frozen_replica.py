@@ -30,7 +30,7 @@ from client import CpkbClient
 pytestmark = [pytest.mark.postgres, pytest.mark.slow]
 
 # Posts only: fits would share the two cores the rates are measured on.
-ENV = {"CPKB_SURROGATE_ENABLED": "false"}
+ENV = {"CPKB_SURROGATE__ENABLED": "false"}
 BASELINE_S = 20.0
 FROZEN_S = 60.0
 RECOVERY_S = 10.0

@@ -50,7 +50,7 @@ class TypeLock:
 
 @pytest.fixture
 def server(postgres_url: str, tmp_path: Path) -> Iterator[str]:
-    env = {"CPKB_PG_LOCK_TIMEOUT_MS": "500", "CPKB_SURROGATE_ENABLED": "false"}
+    env = {"CPKB_PG_LOCK_TIMEOUT_MS": "500", "CPKB_SURROGATE__ENABLED": "false"}
     with run_live_server(postgres_url, tmp_path / "server.log", env=env) as live:
         httpx.post(live.url + POINTS, json={"points": [make_point(0)]}).raise_for_status()
         yield live.url
@@ -87,7 +87,7 @@ def test_health_answers_while_every_worker_waits_on_a_lock(
     postgres_url: str, tmp_path: Path
 ) -> None:
     # Lock waits long enough that the posts below still wait when health is asked.
-    env = {"CPKB_PG_LOCK_TIMEOUT_MS": "60000", "CPKB_SURROGATE_ENABLED": "false"}
+    env = {"CPKB_PG_LOCK_TIMEOUT_MS": "60000", "CPKB_SURROGATE__ENABLED": "false"}
     with run_live_server(postgres_url, tmp_path / "server.log", env=env) as live:
         httpx.post(live.url + POINTS, json={"points": [make_point(0)]}).raise_for_status()
         lock = TypeLock(postgres_url)

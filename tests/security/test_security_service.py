@@ -135,7 +135,9 @@ def test_cli_passes_the_token_from_option_or_environment(
     server_url: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.delenv("CPKB_TOKEN", raising=False)
-    assert cpkb_main(["kb", "create", "lab1", "--url", server_url]) == 2
+    assert (
+        cpkb_main(["kb", "create", "lab1", "--url", server_url]) == 3
+    )  # refused: the knowledge base exit, as plan and bench give
     assert "token" in capsys.readouterr().err
     assert cpkb_main(["kb", "create", "lab1", "--url", server_url, "--token", TOKEN]) == 0
     monkeypatch.setenv("CPKB_TOKEN", "second-token")

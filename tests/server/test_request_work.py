@@ -72,7 +72,7 @@ def test_the_budget_is_a_setting(sqlite_url: str) -> None:
 
 
 def test_health_and_reads_answer_while_heavy_matches_run(sqlite_url: str, tmp_path: Path) -> None:
-    env = {"CPKB_SURROGATE_ENABLED": "false"}
+    env = {"CPKB_SURROGATE__ENABLED": "false"}
     with run_live_server(sqlite_url, tmp_path / "server.log", env=env) as live:
         done: list[int] = []
 
