@@ -211,8 +211,10 @@ def _choice_panel(
             good[choice] += int(feasible)
     parts = [
         f'<g class="cp-slice-panel" data-dim="{escape(label)}">',
-        f'<text x="{ox:.1f}" y="{oy - 22:.1f}" font-size="12" fill="{_INK}">{escape(label)} '
-        f'<tspan fill="{_MUTED}">stored feasible share, points per choice</tspan></text>',
+        f'<text x="{ox:.1f}" y="{oy - 22:.1f}" font-size="12" fill="{_INK}">{escape(label)}</text>',
+        # A line of its own: beside a long label it would run past the panel on a phone.
+        f'<text x="{ox:.1f}" y="{oy - 7:.1f}" font-size="9" fill="{_MUTED}">'
+        "stored feasible share, points per choice</text>",
         _frame(ox, oy, "", ""),
     ]
     bar_w = _W / max(1, len(domain.choices))
