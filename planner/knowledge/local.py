@@ -19,6 +19,11 @@ service would serve it.
 Like the service, it keeps the suggestions it served as pending until a point answers them (or
 they expire), and pushes new ones away from them: a batch's unused points and other nodes' recent
 suggestions keep the tree spread.
+
+A process that suggests here runs its BLAS on one thread (`one_blas_thread`): the planner has one
+core, and a suggestion's matrix products (a few hundred candidates by the inducing points) are
+too small to gain from a second thread, which, on a core other processes keep busy, the first one
+waits for at every product (most of a suggestion's wall time on a loaded machine).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from contract import models as wire
 from contract.models import Constraint, ModelsOut, SuggestIn, SuggestOut
@@ -44,6 +50,12 @@ from surrogate.suggest import suggest as suggest_point
 
 PENDING_KEY = "local"  # the one knowledge base of this process's pending book
 FetchFn = Callable[[list[str], dict[str, str]], ModelsOut]
+
+
+def one_blas_thread() -> None:
+    """This process's BLAS libraries on one thread from now on (for good: a limit set and
+    restored around each suggestion would race with another thread's)."""
+    threadpool_limits(limits=1, user_api="blas")
 
 
 def fetch_from(
@@ -176,6 +188,7 @@ class LocalSurrogates:
     ) -> None:
         """`pending_clock` times the pending suggestions' lifetime: a constant one keeps them
         until a point answers them, so that how long a run waits does not change its course."""
+        one_blas_thread()
         self._fetch = fetch
         self.refresh_rollouts = refresh_rollouts
         self.prior_counts = prior_counts

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from client import CpkbClient
 from contract.models import SuggestIn
@@ -74,6 +75,15 @@ def _stock(live_kb, task: str = "deskP", rollouts: int = 40) -> None:
                 return
             time.sleep(0.2)
         raise AssertionError("fits did not land in 120 s")
+
+
+def test_a_planner_that_suggests_runs_its_blas_on_one_thread():
+    """Its matrix products are too small for a second thread, which a loaded machine makes the
+    first one wait for; the limit stays (a planner suggests again and again)."""
+    with threadpool_limits(limits=2, user_api="blas"):
+        LocalSurrogates(fetch_from(_memory(), OPTIMIZER), background=False)
+        blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+        assert blas and set(blas) == {1}
 
 
 @pytest.mark.parametrize("counts", [0.0, 2.0])
