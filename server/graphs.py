@@ -7,16 +7,20 @@ it prefixes successor and predecessor labels alike with the edge label.) A hash 
 "probably the same type"; `check_same_type` then confirms with an isomorphism test (roles,
 labels, domains, edge labels) so that a collision or a changed domain is a conflict, never
 a silent merge. Resolved graphs are cached by their JSON, because planners post the same
-few graphs over and over.
+few graphs over and over; the hash is worked out from the per-node hashes that the canonical
+order needs (`wl_hashes`), one Weisfeiler-Lehman pass rather than two, as a planner's prematch
+sends hundreds of graphs new to the service.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from hashlib import blake2b
 from typing import Any
 
 import networkx as nx
@@ -122,9 +126,21 @@ def _wl_graph(graph: Graph) -> nx.DiGraph:
     return g
 
 
-def _canonical(graph: Graph, wl: nx.DiGraph) -> dict[str, Any]:
-    """Node ids renamed n0, n1, ... in an order fixed by role, label and WL neighbourhood."""
+def wl_hashes(wl: nx.DiGraph) -> tuple[str, dict[Any, list[str]]]:
+    """networkx's `weisfeiler_lehman_graph_hash` of `wl` and its
+    `weisfeiler_lehman_subgraph_hashes`, from one pass: the graph hash is the hash of each
+    iteration's node labels counted (in label order, iteration after iteration), and those
+    labels are the subgraph hashes."""
     hashes = nx.weisfeiler_lehman_subgraph_hashes(wl, node_attr="wl", iterations=WL_ITERATIONS)
+    counts: list[tuple[str, int]] = []
+    for i in range(WL_ITERATIONS):
+        counts.extend(sorted(Counter(labels[i] for labels in hashes.values()).items()))
+    return blake2b(str(tuple(counts)).encode("ascii"), digest_size=16).hexdigest(), hashes
+
+
+def _canonical(graph: Graph, hashes: Mapping[Any, list[str]]) -> dict[str, Any]:
+    """Node ids renamed n0, n1, ... in an order fixed by role, label and WL neighbourhood
+    (`hashes`: the subgraph hashes of `_wl_graph(graph)`)."""
     subtree = {node_id: hashes[("v", node_id)] for kind, node_id in hashes if kind == "v"}
     order = sorted(
         graph.nodes, key=lambda n: (ROLE_ORDER[n.role], n.label, tuple(subtree[n.id]), n.id)
@@ -149,12 +165,11 @@ def _canonical(graph: Graph, wl: nx.DiGraph) -> dict[str, Any]:
 def _resolve_json(graph_json: str) -> ResolvedGraph:
     graph = Graph.model_validate_json(graph_json)
     validate_graph(graph)
-    wl = _wl_graph(graph)
-    type_id = nx.weisfeiler_lehman_graph_hash(wl, node_attr="wl", iterations=WL_ITERATIONS)
+    type_id, hashes = wl_hashes(_wl_graph(graph))
     space = {n.label: n.domain for n in graph.nodes if n.role == "decision" and n.domain}
     return ResolvedGraph(
         type_id=type_id,
-        canonical=_canonical(graph, wl),
+        canonical=_canonical(graph, hashes),
         space=dict(sorted(space.items())),
         failure=next(n.label for n in graph.nodes if n.role == "failure"),
         decisions=sorted(space),

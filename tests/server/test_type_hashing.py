@@ -4,11 +4,21 @@ from __future__ import annotations
 
 from typing import Any
 
+import networkx as nx
 import pytest
 from service_support import collision_pair, make_graph
 
 from contract.models import Graph
-from server.graphs import GraphError, TypeConflict, check_same_type, check_x, resolve_graph
+from server.graphs import (
+    WL_ITERATIONS,
+    GraphError,
+    TypeConflict,
+    _wl_graph,
+    check_same_type,
+    check_x,
+    resolve_graph,
+    wl_hashes,
+)
 
 
 def resolve(graph: dict[str, Any]) -> Any:
@@ -23,6 +33,25 @@ def test_renamed_reordered_graph_has_the_same_type_and_canonical_form() -> None:
     assert a.type_id == b.type_id and len(a.type_id) == 32
     assert a.canonical == b.canonical
     check_same_type(b, a.canonical)
+
+
+@pytest.mark.parametrize(
+    ("graph", "type_id"),
+    [
+        (make_graph(), "eae1065e9193ba4582bebf796559ec38"),
+        (make_graph(context=("box1", "box2")), "fbf820f0bb3f621c3a4704a0f766d47e"),
+        (collision_pair()[0], "ce14910c34bfc30ebd9dbee72176f325"),
+        (collision_pair()[1], "ce14910c34bfc30ebd9dbee72176f325"),
+    ],
+)
+def test_type_ids_are_networkx_weisfeiler_lehman_hashes(
+    graph: dict[str, Any], type_id: str
+) -> None:
+    """The hash worked out from the subgraph hashes is networkx's graph hash, and the type IDs
+    that knowledge bases hold do not change (those of an earlier commit, pinned)."""
+    wl = _wl_graph(Graph.model_validate(graph))
+    expected = nx.weisfeiler_lehman_graph_hash(wl, node_attr="wl", iterations=WL_ITERATIONS)
+    assert wl_hashes(wl)[0] == expected == type_id == resolve(graph).type_id
 
 
 @pytest.mark.parametrize(
