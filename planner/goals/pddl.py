@@ -21,18 +21,29 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from planner.tasks.schema import Task, TaskError
+from planner.tasks.schema import Task, TaskError, smaller, start_support
 
-DOMAIN = """\
+# `towers` (Hanoi's rules, `Task.stacking`): a body stacks only on a larger one (static
+# `smaller` facts from the bodies' sizes) and a region holds one body (`free`).
+_TOWERS = {"pick": "(free ?r)", "place": "(not (free ?r))", "stack": "(smaller ?b ?s)"}
+
+
+def domain(stacking: str) -> str:
+    """The PDDL domain of picks and places; `stacking` as `Task.stacking` says."""
+    towers = stacking == "towers"
+    extra = {k: f" {v}" if towers else "" for k, v in _TOWERS.items()}
+    place_pre = " (free ?r)" if towers else ""
+    return f"""\
 (define (domain cpkb)
   (:requirements :strips :typing)
   (:types body region)
   (:predicates (on ?b - body ?r - region) (on-body ?b - body ?s - body)
-               (holding ?b - body) (handempty) (clear ?b - body))
+               (holding ?b - body) (handempty) (clear ?b - body)
+               (free ?r - region) (smaller ?b - body ?s - body))
   (:action pick
     :parameters (?b - body ?r - region)
     :precondition (and (handempty) (on ?b ?r) (clear ?b))
-    :effect (and (holding ?b) (not (handempty)) (not (on ?b ?r)) (not (clear ?b))))
+    :effect (and (holding ?b) (not (handempty)) (not (on ?b ?r)) (not (clear ?b)){extra["pick"]}))
   (:action unstack
     :parameters (?b - body ?s - body)
     :precondition (and (handempty) (on-body ?b ?s) (clear ?b))
@@ -40,15 +51,18 @@ DOMAIN = """\
                  (clear ?s)))
   (:action place
     :parameters (?b - body ?r - region)
-    :precondition (holding ?b)
-    :effect (and (on ?b ?r) (handempty) (clear ?b) (not (holding ?b))))
+    :precondition (and (holding ?b){place_pre})
+    :effect (and (on ?b ?r) (handempty) (clear ?b) (not (holding ?b)){extra["place"]}))
   (:action stack
     :parameters (?b - body ?s - body)
-    :precondition (and (holding ?b) (clear ?s))
+    :precondition (and (holding ?b) (clear ?s){extra["stack"]})
     :effect (and (on-body ?b ?s) (handempty) (clear ?b) (not (holding ?b)) (not (clear ?s))))
 )
 """
+
+
 PLANNER_TIMEOUT_S = 60
+ASK = 4  # plans asked of K* per plan kept
 _PLAN = re.compile(r"^Plan \d+, of cost ([\d.]+)$")
 _ACTION = re.compile(r"^\d+\. \((\S+) (\S+) (\S+)\)$")
 
@@ -73,13 +87,27 @@ def _name(text: str) -> str:
 
 
 def problem(task: Task) -> str:
-    """The task's start and goal as a PDDL problem: every body on its start pose's region."""
+    """The task's start and goal as a PDDL problem: every body on its start pose's region or on
+    the body it starts on, clear when nothing starts on it; with `stacking: towers`, the
+    regions no body starts on are free and `smaller` says which body may stand on which."""
     regions = " ".join(_name(r) for r in task.workspace.regions)
     bodies = " ".join(_name(b) for b in task.bodies)
-    start = [
-        f"(on {_name(b.name)} {_name(task.workspace.poses[b.pose].region)}) (clear {_name(b.name)})"
-        for b in task.bodies.values()
-    ]
+    below = {start_support(task.workspace, task.bodies, b): b for b in task.bodies}
+    start = ["(handempty)"]
+    for b in task.bodies:
+        support = start_support(task.workspace, task.bodies, b)
+        fact = "on-body" if support in task.bodies else "on"
+        start.append(f"({fact} {_name(b)} {_name(support)})")
+        if b not in below:
+            start.append(f"(clear {_name(b)})")
+    if task.stacking == "towers":
+        start += [f"(free {_name(r)})" for r in task.workspace.regions if r not in below]
+        start += [
+            f"(smaller {_name(a)} {_name(b)})"
+            for a, body_a in task.bodies.items()
+            for b, body_b in task.bodies.items()
+            if smaller(body_a, body_b)
+        ]
     goals = [
         f"(on {_name(g.body)} {_name(g.region)})"
         if g.region in task.workspace.regions
@@ -89,7 +117,7 @@ def problem(task: Task) -> str:
     return (
         f"(define (problem {_name(task.name)}) (:domain cpkb)\n"
         f"  (:objects {bodies} - body {regions} - region)\n"
-        f"  (:init (handempty) {' '.join(start)})\n"
+        f"  (:init {' '.join(start)})\n"
         f"  (:goal (and (handempty) {' '.join(goals)})))\n"
     )
 
@@ -118,12 +146,16 @@ def parse_plans(text: str, names: dict[str, str]) -> list[Plan]:
 
 def redundant(task: Task, plan: Plan) -> bool:
     """Whether a move puts a body back on the place it was taken from (a symbolic no-op: cpkb
-    does not shift a body within its region), or the goal holds before the last move (the
-    moves after it cannot help; the shorter plan is among the others)."""
-    where = {b.name: task.workspace.poses[b.pose].region for b in task.bodies.values()}
+    does not shift a body within its region), or back on the place it stood before its previous
+    move with no other body moved in between (the two moves together are such a no-op), or the
+    goal holds before the last move (the moves after it cannot help; the shorter plan is among
+    the others)."""
+    where = {b: start_support(task.workspace, task.bodies, b) for b in task.bodies}
+    left: Move | None = None  # the previous move's body and the place it was taken from
     for i, move in enumerate(plan.moves):
-        if where[move.body] == move.place:
+        if where[move.body] == move.place or left == move:
             return True
+        left = Move(move.body, where[move.body])
         where[move.body] = move.place
         if i < len(plan.moves) - 1 and all(where[g.body] == g.region for g in task.goal):
             return True
@@ -132,13 +164,26 @@ def redundant(task: Task, plan: Plan) -> bool:
 
 def top_plans(task: Task, k: int) -> list[Plan]:
     """The `k` cheapest plans K* finds for the task, the redundant ones left out, cheapest
-    first (K*'s order among plans of one cost)."""
+    first (K*'s order among plans of one cost). K* is asked for `ASK` times `k`: most of its
+    cheapest plans are redundant, and the ones that move a body away and back come after them
+    (the non-monotonic problem's)."""
+    plans = [p for p in _kstar(task, ASK * k) if not redundant(task, p)]
+    if not plans:
+        raise TaskError(f"{task.source}: goal: every plan the PDDL planner found is redundant")
+    return sorted(plans, key=lambda p: p.cost)[:k]
+
+
+def _kstar(task: Task, k: int) -> list[Plan]:
+    """The `k` cheapest plans K* prints for the task (fewer where there are fewer)."""
     names = {_name(n): n for n in (*task.workspace.regions, *task.bodies)}
     with tempfile.TemporaryDirectory(prefix="cpkb-pddl-") as folder:
-        domain, prob = Path(folder) / "domain.pddl", Path(folder) / "problem.pddl"
-        domain.write_text(DOMAIN)
+        domain_file, prob = Path(folder) / "domain.pddl", Path(folder) / "problem.pddl"
+        domain_file.write_text(domain(task.stacking))
         prob.write_text(problem(task))
-        command = [sys.executable, "-m", "kstar_planner", str(domain), str(prob), "-k", str(k)]
+        command = [
+            *(sys.executable, "-m", "kstar_planner"),
+            *(str(domain_file), str(prob), "-k", str(k)),
+        ]
         try:
             out = subprocess.run(
                 command, capture_output=True, text=True, timeout=PLANNER_TIMEOUT_S, cwd=folder
@@ -147,8 +192,8 @@ def top_plans(task: Task, k: int) -> list[Plan]:
             raise TaskError(
                 f"{task.source}: goal: the PDDL planner found no plan in {PLANNER_TIMEOUT_S} s"
             ) from None
-    plans = [p for p in parse_plans(out.stdout, names) if not redundant(task, p)]
+    plans = parse_plans(out.stdout, names)
     if not plans:
         detail = out.stderr.strip().splitlines()[-1:] or ["no plan"]
         raise TaskError(f"{task.source}: goal: the PDDL planner found no plan ({detail[0]})")
-    return sorted(plans, key=lambda p: p.cost)
+    return plans

@@ -23,6 +23,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import Any
 
+from contract.models import MAX_LABEL
 from planner.goals.pddl import Plan, top_plans
 from planner.goals.skeletons import describe, skeleton_task
 from planner.search import PWUCT, SearchProgress
@@ -30,7 +31,7 @@ from planner.search import samplers as sampler_registry
 from planner.tasks.schema import Task
 from planner.world import TransitionOutcome
 
-PLANS = 40  # plans asked of K*, cheapest first (the redundant ones are dropped)
+PLANS = 40  # plans taken from K*, cheapest first (the redundant ones are dropped)
 TURN = 10  # rollouts a skeleton runs before the next is chosen
 PROGRESS_FLOOR = 0.25  # the progress credited to a skeleton not yet run
 
@@ -49,6 +50,7 @@ class Branch:
     progress: float = 0.0  # the deepest rollout's share of the skeleton's layers
     exhausted: bool = False
     found: dict[str, Any] | None = None
+    solved_before: bool = False  # the knowledge base holds a binding list found for it
 
 
 class Blame:
@@ -87,13 +89,41 @@ class Blame:
 def priority(branch: Branch, fewest_moves: int, blamed: set[str]) -> float:
     """Effort spent (with the coming turn) per progress made, times one plus the moves beyond
     the cheapest plan's, a move of a body some failure collided with not counted (it may clear
-    the way): the least goes next; an exhausted tree never does."""
+    the way, or put the body back): the least goes next; an exhausted tree never does. A
+    skeleton some earlier run solved (a binding list of it is stored) goes first: one rollout,
+    which follows that binding list, then, if that failed, a whole turn."""
     if branch.exhausted:
         return float("inf")
-    clearing = sum(move.body in blamed for move in branch.plan.moves[:-1])
+    if branch.solved_before and branch.spent <= 1:
+        return 0.0
+    clearing = sum(move.body in blamed for move in branch.plan.moves)
     extra = max(0, len(branch.plan.moves) - fewest_moves - clearing)
     progress = branch.progress if branch.spent else PROGRESS_FLOOR
     return (branch.spent + TURN) * (1 + extra) / max(progress, 1e-3)
+
+
+def next_branch(branches: list[Branch], turns: int, fewest: int, blamed: set[str]) -> Branch:
+    """The skeleton to run the next turn: the least `priority` among the opened ones, or among
+    all while the opened number at most the square root of the turns taken (or are all
+    exhausted); the cheaper plan on a tie."""
+    opened = [b for b in branches if b.search is not None]
+    candidates = opened
+    if len(opened) ** 2 <= turns or all(b.exhausted for b in opened):
+        candidates = branches
+    return min(candidates, key=lambda b: (priority(b, fewest, blamed), b.index))
+
+
+def solved_before(client: Any, kb: str, task: Task, plans: list[Plan]) -> list[bool]:
+    """Per plan, whether the knowledge base holds a binding list an earlier run of the task found
+    for its skeleton (found bindings are keyed by the task and a digest of the skeleton)."""
+    from planner.knowledge.found import skeleton_digest
+    from planner.tasks import build_skeleton
+
+    stored = {b.skeleton for b in client.bindings(kb, task=task.name[:MAX_LABEL]).bindings}
+    return [
+        bool(stored) and skeleton_digest(build_skeleton(skeleton_task(task, p))) in stored
+        for p in plans
+    ]
 
 
 def plan_goal(
@@ -119,6 +149,10 @@ def plan_goal(
                 raise ValueError(f"{request.method} needs a knowledge base: give kb_url")
             client = stack.enter_context(CpkbClient(request.kb_url, token=request.token))
             client.create_kb(request.kb, exist_ok=True)
+            if config.knowledge.follow_found:
+                stored = solved_before(client, request.kb, task, plans)
+                for branch, before in zip(branches, stored, strict=True):
+                    branch.solved_before = before
         scene = None
 
         def open_branch(branch: Branch) -> None:
@@ -142,7 +176,11 @@ def plan_goal(
                     config=config.knowledge,
                 )
                 stack.callback(branch.session.close)
-                if config.cp_bo.prematch:
+                if branch.solved_before:
+                    # Its first rollout follows the stored binding list; the types are matched
+                    # only if that fails (prematching costs more than the rollout).
+                    branch.session.read_found()
+                elif config.cp_bo.prematch:
                     branch.session.prematch()
             branch.sampler = sampler_registry.make(
                 request.method,
@@ -162,12 +200,9 @@ def plan_goal(
 
         total, best, turns = 0, 0.0, 0
         winner: Branch | None = None
-        while total < request.max_rollouts:
-            opened = [b for b in branches if b.search is not None]
-            candidates = opened
-            if len(opened) ** 2 <= turns or all(b.exhausted for b in opened):
-                candidates = branches
-            branch = min(candidates, key=lambda b: (priority(b, fewest, blame.named), b.index))
+        deadline = None if request.time_budget_s is None else started + request.time_budget_s
+        while total < request.max_rollouts and (deadline is None or time.perf_counter() < deadline):
+            branch = next_branch(branches, turns, fewest, blame.named)
             if branch.exhausted:
                 break
             turns += 1
@@ -176,6 +211,11 @@ def plan_goal(
             search = branch.search
             assert search is not None
             turn = min(TURN, request.max_rollouts - total)
+            if branch.solved_before and branch.spent == 1 and branch.session is not None:
+                if config.cp_bo.prematch:
+                    branch.session.prematch(found=False)
+            elif branch.solved_before and not branch.spent:
+                turn = 1
 
             def report(p: SearchProgress, base: int = total - branch.spent) -> None:
                 if progress is not None:
@@ -191,7 +231,9 @@ def plan_goal(
                         )
                     )
 
-            outcome = search.run(branch.spent + turn, stop_at_first=True, progress=report)
+            outcome = search.run(
+                branch.spent + turn, stop_at_first=True, progress=report, deadline=deadline
+            )
             total += outcome.rollouts_spent - branch.spent
             branch.spent = outcome.rollouts_spent
             branch.progress = outcome.best_depth / search.n_layers
@@ -202,11 +244,21 @@ def plan_goal(
                 winner = branch
                 break
         opened = [b for b in branches if b.search is not None]
-        if winner is not None and winner.session is not None and winner.found is not None:
+        # A stored binding list followed in the first rollout is stored already.
+        replayed = winner is not None and winner.solved_before and winner.spent == 1
+        if (
+            winner is not None
+            and winner.session is not None
+            and winner.found is not None
+            and not replayed
+        ):
             winner.session.add_found(winner.found, winner.spent)
         sessions = [b.session for b in opened if b.session is not None]
         tried = ", ".join(f"{b.index + 1}: {b.spent}" for b in opened)
         notes = [f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}"]
+        earlier = [str(b.index + 1) for b in branches if b.solved_before]
+        if earlier:
+            notes.append(f"skeletons solved by earlier runs: {', '.join(earlier)}")
         if winner is not None:
             notes.append(
                 f"solved by skeleton {winner.index + 1} of {len(plans)} ({describe(winner.plan)})"

@@ -83,10 +83,16 @@ class KnowledgeSession:
 
     # -- observing the search -----------------------------------------------------------------
 
-    def prematch(self) -> None:
-        """Activate the known types among every graph this task could produce."""
+    def prematch(self, *, found: bool = True) -> None:
+        """Activate the known types among every graph this task could produce; with `found`,
+        also read the binding lists earlier runs found (`read_found`)."""
         self.stats.types_prematched = self.matcher.prematch(self.world.culprit_candidates)
         self.sharing.start()
+        if found:
+            self.read_found()
+
+    def read_found(self) -> None:
+        """Read the binding lists earlier runs of this task found: the tree follows them first."""
         if self.guidance.found is not None:
             self.guidance.found.start()
 

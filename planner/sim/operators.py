@@ -192,8 +192,7 @@ def _body_pose(ex: Execution, body: str, pose_arg: str) -> tuple[Pose, str]:
             return ex.scene.region_pose(owner, region, seed, heading), region  # type: ignore[arg-type]
         position, _ = ex.scene.region_pose(owner, region, seed)  # type: ignore[arg-type]
         return (position, ex.scene.pose(owner)[1]), region
-    named = ex.scene.task.workspace.poses[pose_arg]
-    return ex.scene.named_pose(pose_arg, body), named.region
+    return ex.scene.named_pose(pose_arg, body), ex.scene.pose_region(pose_arg)
 
 
 def inv_kin(call: OperatorCall, ex: Execution) -> CheckResult:

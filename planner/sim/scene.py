@@ -98,8 +98,8 @@ class Scene:
             uid = p.createMultiBody(0.2, shape, visual, physicsClientId=self.client)
             self._register(movable.name, uid)
             self.sizes[movable.name] = movable.size
-            self.set_pose(movable.name, self.named_pose(movable.pose, movable.name))
         self.movable_names = tuple(task.bodies)
+        self.start_poses()
         # Nominal IK solutions by kind of hand pose, filled on first use (planner.sim.operators).
         self.nominal_ik: dict[tuple[str, float], tuple[float, ...]] = {}
 
@@ -146,8 +146,35 @@ class Scene:
         return (x, y, z), yaw_quat(yaw)
 
     def named_pose(self, pose: str, body: str) -> Pose:
+        """A workspace's named pose, or the pose on top of movable body `pose` where it stands
+        now: centred on its top face, turned as it is."""
+        if pose in self.sizes:
+            top = self.region(pose)
+            return self.standing_pose(body, top, top.center[0], top.center[1], top.yaw)
         named: NamedPose = self.task.workspace.poses[pose]
         return self.standing_pose(body, self.region(named.region), *named.xy, named.yaw)
+
+    def pose_region(self, pose: str) -> str:
+        """The region a named pose stands on: the workspace's, or the body it names."""
+        return pose if pose in self.sizes else self.task.workspace.poses[pose].region
+
+    def start_poses(self) -> tuple[tuple[str, Pose], ...]:
+        """Put every movable body where the task starts it, each body before those standing
+        on it (the loader refused circles), and give those poses in `movable_names` order."""
+        bodies = self.task.bodies
+        placed: dict[str, Pose] = {}
+
+        def place(name: str) -> None:
+            if name in placed:
+                return
+            if bodies[name].pose in bodies:
+                place(bodies[name].pose)
+            placed[name] = self.named_pose(bodies[name].pose, name)
+            self.set_pose(name, placed[name])
+
+        for name in self.movable_names:
+            place(name)
+        return tuple((name, placed[name]) for name in self.movable_names)
 
     def region_pose(
         self, body: str, region_name: str, seed: Iterable[float], heading: float = 0.0

@@ -58,9 +58,7 @@ class PyBulletWorld:
             arm=tuple(task.workspace.robot.home),
             fingers=self.scene.max_finger_opening,
             # Where the task puts them, not where a shared scene's last search left them.
-            poses=tuple(
-                (n, self.scene.named_pose(task.bodies[n].pose, n)) for n in self.scene.movable_names
-            ),
+            poses=self.scene.start_poses(),
             held=None,
             values=((HOME_CONFIG, ArmConfig(tuple(task.workspace.robot.home))),),
         )

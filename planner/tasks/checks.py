@@ -14,7 +14,15 @@ import math
 from dataclasses import dataclass
 
 from planner.tasks.reach import ArmReach, arm_reach
-from planner.tasks.schema import Goal, LayerSpec, MovableBody, Region, Workspace
+from planner.tasks.schema import (
+    Goal,
+    LayerSpec,
+    MovableBody,
+    Region,
+    Workspace,
+    smaller,
+    start_support,
+)
 
 PANDA_SHOULDER_HEIGHT = 0.333  # joint 2 above the base, where the arm's reach is measured from
 PANDA_REACH = 0.855  # the Panda's stated maximum reach from that joint, metres
@@ -23,15 +31,105 @@ TOP_GRASP_DEPTH = 0.03  # how far below the top face the fingertips reach
 SIDE_GRASP_BELOW_TOP = 0.04  # side grasps centre the fingers this far below the top face
 
 
+def start_footing(
+    workspace: Workspace, bodies: dict[str, MovableBody], name: str
+) -> tuple[tuple[float, float], float, float]:
+    """Where body `name` starts: its centre's (x, y), its yaw and the height of the surface it
+    stands on (a body on another is centred on that one's top face, turned as it is)."""
+    body = bodies[name]
+    if body.pose in bodies:
+        xy, yaw, surface = start_footing(workspace, bodies, body.pose)
+        return xy, yaw, surface + bodies[body.pose].size[2]
+    pose = workspace.poses[body.pose]
+    return pose.xy, pose.yaw, workspace.regions[pose.region].center[2]
+
+
 def start_region(workspace: Workspace, bodies: dict[str, MovableBody], name: str) -> Region:
     """The region `name`: the workspace's, or the top face of a movable body where it starts
     (`On(body, other_body)` stacks on it; the simulator follows the body if it moves)."""
     if name in workspace.regions:
         return workspace.regions[name]
     body = bodies[name]
-    pose = workspace.poses[body.pose]
-    top = workspace.regions[pose.region].center[2] + body.size[2]
-    return Region(name, (*pose.xy, top), (body.size[0], body.size[1]), pose.yaw)
+    xy, yaw, surface = start_footing(workspace, bodies, name)
+    return Region(name, (*xy, surface + body.size[2]), (body.size[0], body.size[1]), yaw)
+
+
+def _corners(body: MovableBody, xy: tuple[float, float], yaw: float) -> list[tuple[float, float]]:
+    return centre_corners(Region(body.name, (*xy, 0.0), (body.size[0], body.size[1]), yaw), 0.0)
+
+
+def _overlap(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> bool:
+    """Whether two rectangles (their corners, as `centre_corners` orders them) overlap by more
+    than a millimetre: no axis of either separates them."""
+    for rect in (a, b):
+        for i, j in ((0, 1), (0, 2)):
+            ax, ay = rect[j][0] - rect[i][0], rect[j][1] - rect[i][1]
+            norm = math.hypot(ax, ay) or 1.0
+            pa = [(x * ax + y * ay) / norm for x, y in a]
+            pb = [(x * ax + y * ay) / norm for x, y in b]
+            if min(max(pa), max(pb)) - max(min(pa), min(pb)) <= 1e-3:
+                return False
+    return True
+
+
+def start_conflict(
+    workspace: Workspace, bodies: dict[str, MovableBody], stacking: str
+) -> Impossible | None:
+    """A start no scene can hold: a body on itself, bodies that stand on each other in a
+    circle, two bodies on one body (each is centred on the one below), two whose footprints
+    overlap on one surface; with `stacking: towers`, a body on one not larger than itself or
+    two towers on one region."""
+    for name in bodies:
+        chain = [name]
+        while bodies[chain[-1]].pose in bodies:
+            below = bodies[chain[-1]].pose
+            if below == name:
+                what = (
+                    f"{name} cannot start on itself"
+                    if len(chain) == 1
+                    else f"{' on '.join([*chain, name])}: the bodies stand on each other in a "
+                    "circle, none on a region"
+                )
+                return Impossible(f"bodies.{name}.pose", what)
+            if below in chain:
+                break  # a circle above another body's; that body's turn reports it
+            chain.append(below)
+    above: dict[str, str] = {}
+    for name, body in bodies.items():
+        if body.pose in bodies:
+            other = above.setdefault(body.pose, name)
+            if other != name:
+                return Impossible(
+                    f"bodies.{name}.pose",
+                    f"{other} and {name} both start on {body.pose}: a body starting on another "
+                    "is centred on its top face, so one body holds one",
+                )
+            if stacking == "towers" and not smaller(body, bodies[body.pose]):
+                return Impossible(
+                    f"bodies.{name}.pose",
+                    f"{name} starts on {body.pose}, which is not larger: with stacking: towers a "
+                    "body stands only on a larger one",
+                )
+    grounded = [n for n, b in bodies.items() if b.pose not in bodies]
+    for i, a in enumerate(grounded):
+        for b in grounded[i + 1 :]:
+            ra, rb = start_support(workspace, bodies, a), start_support(workspace, bodies, b)
+            if stacking == "towers" and ra == rb:
+                return Impossible(
+                    f"bodies.{b}.pose",
+                    f"{a} and {b} both start on {ra}: with stacking: towers a region holds one "
+                    "tower",
+                )
+            fa, fb = start_footing(workspace, bodies, a), start_footing(workspace, bodies, b)
+            if abs(fa[2] - fb[2]) < 1e-6 and _overlap(
+                _corners(bodies[a], *fa[:2]), _corners(bodies[b], *fb[:2])
+            ):
+                return Impossible(
+                    f"bodies.{b}.pose",
+                    f"{b} at {bodies[b].pose} overlaps {a} at {bodies[a].pose}: two bodies "
+                    "cannot start in one place",
+                )
+    return None
 
 
 def footprint_margin(body: MovableBody) -> float:
@@ -88,9 +186,8 @@ def geometry_warnings(
                     "reach"
                 )
     for body in bodies.values() if panda else ():
-        pose = workspace.poses[body.pose]
-        z = workspace.regions[pose.region].center[2] + body.size[2]
-        distance = _reach(workspace, *pose.xy, z)
+        xy, _, surface = start_footing(workspace, bodies, body.name)
+        distance = _reach(workspace, *xy, surface + body.size[2])
         if distance > PANDA_REACH:
             found.append(
                 f"{body.name} starts at {body.pose}, {distance:.2f} m from the arm's shoulder, "
@@ -146,7 +243,7 @@ def impossibility(
     robot = workspace.robot.urdf
     grasped = [c.args[0] for layer in layers for c in layer.calls if c.name == "Inv-kin"]
     # A goal-only task moves every body whose goal does not hold where it starts.
-    grasped += [g.body for g in goals if workspace.poses[bodies[g.body].pose].region != g.region]
+    grasped += [g.body for g in goals if start_support(workspace, bodies, g.body) != g.region]
     picked = dict.fromkeys(grasped)
     widest = max_held_width(workspace)
     for name in picked:
@@ -159,9 +256,8 @@ def impossibility(
                 f"opens {workspace.robot.gripper_opening:.3f} m and holds at most {widest:.3f} m "
                 f"({FINGER_CLEARANCE} m clear of each finger): no grasp can pick it",
             )
-        pose = workspace.poses[body.pose]
-        surface = workspace.regions[pose.region].center[2]
-        start = Region(pose.name, (*pose.xy, surface), (0.0, 0.0))
+        xy, _, surface = start_footing(workspace, bodies, name)
+        start = Region(body.pose, (*xy, surface), (0.0, 0.0))
         distance = _nearest(reach, start, 0.0, _tool_heights(surface, body))
         if distance > reach.bound:
             return Impossible(

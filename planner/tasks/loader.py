@@ -15,9 +15,10 @@ from typing import Any
 
 import yaml
 
-from planner.tasks.checks import geometry_warnings, impossibility
+from planner.tasks.checks import geometry_warnings, impossibility, start_conflict
 from planner.tasks.reach import arm_joint_names, arm_reach
 from planner.tasks.schema import (
+    STACKING,
     BoxPart,
     Call,
     FixedBody,
@@ -31,6 +32,7 @@ from planner.tasks.schema import (
     Task,
     TaskError,
     Workspace,
+    smaller,
 )
 
 GRASP_DIRECTIONS = ("front", "right", "top", "back", "left")
@@ -286,7 +288,9 @@ def _check_arguments(
                 raise r.fail(
                     where, f"{arg} is a {have} output, but {call.name} needs a {kind} here"
                 )
-        elif arg not in task_names[kind] and not (kind == "region" and arg in task_names["body"]):
+        elif arg not in task_names[kind] and not (
+            kind in ("region", "pose") and arg in task_names["body"]
+        ):
             known = ", ".join(sorted(task_names[kind])) or "none"
             raise r.fail(where, f"{arg!r} is not a {kind} of this task (known: {known})")
     if call.name == "Sample-pose" and call.args[0] == call.args[1]:
@@ -401,8 +405,12 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         "predecessors",
         "role",
         "kind",
+        "stacking",
     }
     r.only(data, allowed, "")
+    stacking = data.get("stacking", "free")
+    if stacking not in STACKING:
+        raise r.fail("stacking", f"expected one of {', '.join(STACKING)}, got {stacking!r}")
     role = data.get("role")
     if role not in (None, *ROLES):
         raise r.fail("role", f"expected one of {', '.join(ROLES)}, got {role!r}")
@@ -430,9 +438,13 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         bd = r.mapping(raw, where)
         r.only(bd, {"size", "pose", "color"}, where)
         pose = r.get(bd, "pose", where)
-        if pose not in workspace.poses:
+        if not isinstance(pose, str) or (
+            pose not in workspace.poses and pose not in data["bodies"]
+        ):
             raise r.fail(
-                f"{where}.pose", f"unknown pose {pose!r} (known: {', '.join(workspace.poses)})"
+                f"{where}.pose",
+                f"unknown pose {pose!r} (known: {', '.join(workspace.poses)}; or a movable "
+                "body's name, to start on its top)",
             )
         bodies[key] = MovableBody(
             name=key,
@@ -442,6 +454,9 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         )
     if not bodies:
         raise r.fail("bodies", "a task needs at least one movable body")
+    conflict = start_conflict(workspace, bodies, stacking)
+    if conflict is not None:
+        raise r.fail(conflict.where, conflict.message)
     names = {
         "body": set(bodies),
         "region": set(workspace.regions),
@@ -465,6 +480,16 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         supports = set(workspace.regions) | (set(bodies) - {m.group(2)})
         if m.group(2) not in bodies or m.group(3) not in supports:
             raise r.fail(f"goal[{i}]", f"{g!r} names an unknown body or region")
+        if (
+            stacking == "towers"
+            and m.group(3) in bodies
+            and not smaller(bodies[m.group(2)], bodies[m.group(3)])
+        ):
+            raise r.fail(
+                f"goal[{i}]",
+                f"{g!r}: {m.group(3)} is not larger than {m.group(2)}, and with stacking: towers "
+                "a body stands only on a larger one",
+            )
         placements = {c.args for layer in layers for c in layer.calls if c.name == "Sample-pose"}
         if layers and (m.group(2), m.group(3)) not in placements:
             raise r.fail(
@@ -501,4 +526,5 @@ def load_task_file(path: Path, *, _visiting: tuple[Path, ...] = ()) -> Task:
         role=role,
         kind=kind,
         warnings=geometry_warnings(workspace, bodies, layers),
+        stacking=stacking,
     )

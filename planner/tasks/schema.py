@@ -94,10 +94,30 @@ class Workspace:
 
 @dataclass(frozen=True)
 class MovableBody:
+    """A movable box. `pose` is a named pose of the workspace, or the name of another movable
+    body that this one starts on (centred on its top face, turned as it is)."""
+
     name: str
     size: Vec3
     pose: str
     color: tuple[float, float, float, float]
+
+
+STACKING = ("free", "towers")  # what the symbolic domain allows to stand on what
+
+
+def start_support(workspace: Workspace, bodies: dict[str, MovableBody], name: str) -> str:
+    """Where body `name` starts: the region of its named pose, or the body it stands on."""
+    pose = bodies[name].pose
+    return pose if pose in bodies else workspace.poses[pose].region
+
+
+def smaller(a: MovableBody, b: MovableBody) -> bool:
+    """Whether `a`'s footprint fits within `b`'s, side for side (shorter within shorter, longer
+    within longer) and strictly smaller: what `stacking: towers` lets stand on `b`."""
+    a_short, a_long = sorted(a.size[:2])
+    b_short, b_long = sorted(b.size[:2])
+    return a_short < b_short and a_long < b_long
 
 
 @dataclass(frozen=True)
@@ -141,3 +161,6 @@ class Task:
     role: str | None = None  # "target" or "predecessor": how a suite directory is read
     kind: str | None = None  # a free label (desk, regrasp, pack) to group a suite's results
     warnings: tuple[str, ...] = ()  # geometry that loads but will not work (see loader)
+    # "towers": a body stacks only on a larger one and a region holds one body (Hanoi's rules);
+    # "free": anything clear holds anything, a region any number side by side.
+    stacking: str = "free"
