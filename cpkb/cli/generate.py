@@ -25,9 +25,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "needing more than 3 rollouts in the median, or it is redrawn. Everything is drawn "
             "from --seed. Run the suite with `cpkb bench --tasks OUT`. With --difficulty hard, "
             "each workspace holds a tight packing (5 to 8 boxes of mixed sizes covering 45 % "
-            "or more of a tray) instead, kept only when a binding is found for it (played in "
-            "the simulator, recorded in suite.yaml) and quasi-random's median over the probes "
-            "is at least 500 rollouts, an unsolved probe counting as more than any."
+            "or more of a tray's usable area) instead, kept only when a binding is found for it "
+            "(played in the simulator, recorded in suite.yaml) and quasi-random-restarts' "
+            "median over the probes is at least 500 rollouts, an unsolved probe counting as "
+            "more than any, one probe at least solving it."
         ),
     )
     parser.add_argument("--out", type=Path, required=True, help="the suite's directory")

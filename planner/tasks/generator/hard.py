@@ -2,13 +2,16 @@
 
 Each workspace holds one target of each hard kind (so far: tight packing, `tight.py`) with its
 predecessors. A target is kept only when it is solvable, a binding found and recorded (the
-kind's own witness, played in the simulator), and hard, quasi-random's median over the probe
-seeds at least `HardProbe.hard_median` rollouts, an unsolved probe counting as more than any.
+kind's own witness, played in the simulator); hard, the median over the probe seeds of
+quasi-random-restarts (the strongest search without learning) at least `HardProbe.hard_median`
+rollouts, an unsolved probe counting as more than any; and within search's reach, one probe at
+least solved within its budget (a target only the witness binds measures no method).
 A target that fails is redrawn whole, from the workspace's own stream of the suite's seed.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 from collections.abc import Callable
@@ -23,13 +26,14 @@ from planner.tasks.generator.build import WorkspaceDraft
 from planner.tasks.generator.yaml_out import write_yaml
 
 KINDS = ("tight-pack",)
+METHOD = "quasi-random-restarts"  # the probes' search
 TARGET_ATTEMPTS = 64  # draws of a target before the suite's seed is given up as barren
 
 
 @dataclass(frozen=True)
 class HardProbe:
-    """The hardness check: quasi-random on `seeds` seeds of `max_rollouts` each, whose median
-    must be at least `hard_median` (an unsolved probe counts as more than any)."""
+    """The hardness check: `METHOD` on `seeds` seeds of `max_rollouts` each, whose median must
+    be at least `hard_median` (an unsolved probe counts as more than any), one of them solved."""
 
     seeds: int = 3
     max_rollouts: int = 2000
@@ -42,7 +46,8 @@ class HardTarget:
     kind: str
     file: str
     attempts: int
-    fill: float
+    fill: float  # of the tray's usable area (`tight.usable_area`)
+    floor_fill: float
     witness: dict[str, Any]
     rollouts: list[int | None]
     seeds: list[int]
@@ -55,22 +60,30 @@ def is_hard(rollouts: list[int | None], settings: HardProbe) -> bool:
     return statistics.median(costs) >= settings.hard_median
 
 
+def is_kept(rollouts: list[int | None], settings: HardProbe) -> bool:
+    """Hard, and solved by at least one probe."""
+    return is_hard(rollouts, settings) and any(r is not None for r in rollouts)
+
+
 def _decided(rollouts: list[int | None], settings: HardProbe) -> bool:
-    """Whether the seeds left can no longer change the verdict."""
+    """Whether the seeds left can no longer change the verdict: an answer counts only as
+    unsolved, solved below `hard_median` or solved at it or above, so the three stand for all."""
+    classes = (None, 0, settings.hard_median)
     left = settings.seeds - len(rollouts)
-    return is_hard([*rollouts, *[0] * left], settings) == is_hard(
-        [*rollouts, *[None] * left], settings
-    )
+    verdicts = {
+        is_kept([*rollouts, *rest], settings) for rest in itertools.product(classes, repeat=left)
+    }
+    return len(verdicts) == 1
 
 
 Probe = Callable[[Path, int, int], int | None]
 
 
 def quasi_random_probe(path: Path, seed: int, max_rollouts: int) -> int | None:
-    """Quasi-random's rollouts to the first binding (None: unsolved within `max_rollouts`)."""
+    """`METHOD`'s rollouts to the first binding (None: unsolved within `max_rollouts`)."""
     from planner.run import run_plan
 
-    result = run_plan(str(path), "quasi-random", seed, max_rollouts=max_rollouts)
+    result = run_plan(str(path), METHOD, seed, max_rollouts=max_rollouts)
     return result.rollouts if result.solved else None
 
 
@@ -88,9 +101,9 @@ def probe_hardness(
 
 def draw_tight_pack(
     rng: np.random.Generator, directory: Path, name: str
-) -> tuple[float, dict[str, Any]] | None:
-    """One tight-packing workspace and its tasks written to `directory`, and its packing's fill
-    and witness binding; None when this draw has no room or no witness."""
+) -> tuple[tight.Packing, dict[str, Any]] | None:
+    """One tight-packing workspace and its tasks written to `directory`, and its packing and
+    witness binding; None when this draw has no room or no witness."""
 
     n = int(rng.integers(tight.BODIES[0], tight.BODIES[1] + 1))
     bodies = tight.draw_bodies(rng, n)
@@ -108,7 +121,7 @@ def draw_tight_pack(
     witness = tight.witness(directory / "tight_pack.yaml", slots)
     if witness is None:
         return None
-    return round(packing.fill, 4), witness
+    return packing, witness
 
 
 def generate_hard_workspace(
@@ -126,15 +139,20 @@ def generate_hard_workspace(
         if drawn is None:
             log(f"{name} tight-pack try {attempt}: no packing, room or witness")
             continue
-        fill, witness = drawn
+        packing, witness = drawn
+        fill, floor_fill = round(packing.fill, 4), round(packing.floor_fill, 4)
         rollouts: list[int | None] = []
         if settings.check:
             rollouts = probe_hardness(directory / "tight_pack.yaml", seeds, settings, probe)
-            log(f"{name} tight-pack try {attempt}: fill {fill:.2f}, quasi-random {rollouts}")
-            if not is_hard(rollouts, settings):
+            log(
+                f"{name} tight-pack try {attempt}: fill {fill:.2f} (floor {floor_fill:.2f}),"
+                f" {METHOD} {rollouts}"
+            )
+            if not is_kept(rollouts, settings):
                 continue
         file = f"{name}/tight_pack.yaml"
+        probed = seeds[: len(rollouts)]
         return [
-            HardTarget("tight-pack", file, attempt, fill, witness, rollouts, seeds[: len(rollouts)])
+            HardTarget("tight-pack", file, attempt, fill, floor_fill, witness, rollouts, probed)
         ]
     raise RuntimeError(f"{name}: no hard target in {TARGET_ATTEMPTS} draws")

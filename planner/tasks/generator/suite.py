@@ -29,6 +29,9 @@ from planner.tasks.generator.build import (
     regrasp_layers,
 )
 from planner.tasks.generator.hard import (
+    METHOD as HARD_METHOD,
+)
+from planner.tasks.generator.hard import (
     HardProbe,
     Probe,
     generate_hard_workspace,
@@ -345,7 +348,7 @@ def generate_suite(
         "workspaces": workspaces,
         "check": {
             "enabled": settings.check,
-            "method": "quasi-random",
+            "method": HARD_METHOD,
             "probe_seeds": settings.seeds,
             "max_rollouts": settings.max_rollouts,
             "trivial_median": settings.trivial,
@@ -365,8 +368,8 @@ def generate_hard_suite(
     probe: Probe = quasi_random_probe,
 ) -> dict[str, Any]:
     """The hard family's suite (`planner.tasks.generator.hard`), written like `generate_suite`'s;
-    the index also records each target's packing fill and the binding that proves it
-    solvable."""
+    the index also records each target's packing fill (of the usable area and of the floor) and
+    the binding that proves it solvable."""
     settings = settings or HardProbe()
     started = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
@@ -386,6 +389,7 @@ def generate_hard_suite(
                 "kind": t.kind,
                 "attempts": t.attempts,
                 "fill": t.fill,
+                "floor_fill": t.floor_fill,
                 "probe_rollouts": t.rollouts,
                 "probe_seeds": t.seeds,
                 "solved_by": {"method": "witness", "bindings": t.witness},
@@ -398,7 +402,7 @@ def generate_hard_suite(
         "difficulty": "hard",
         "check": {
             "enabled": settings.check,
-            "method": "quasi-random",
+            "method": HARD_METHOD,
             "probe_seeds": settings.seeds,
             "max_rollouts": settings.max_rollouts,
             "hard_median": settings.hard_median,
