@@ -68,12 +68,23 @@ def _same(a: Value, b: object) -> bool:
     comparison."""
     if isinstance(a, str) or isinstance(b, str):
         return a == b
+    if _first_apart(a, b):
+        return False  # every branch below compares the first values (the common verdict)
     if _numbers(a) and _numbers(b) and len(a) == len(b):
         return all(x == y or abs(x - y) <= SAME_ATOL for x, y in zip(a, b, strict=True))
     try:
         return bool(np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=0, atol=SAME_ATOL))
     except (TypeError, ValueError):
         return False
+
+
+def _first_apart(a: object, b: object) -> bool:
+    """The first values of two sequences are numbers farther apart than `SAME_ATOL` (a NaN or
+    an infinity is left to the full comparison)."""
+    if not (isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)) and a and b):
+        return False
+    x, y = a[0], b[0]
+    return isinstance(x, (int, float)) and isinstance(y, (int, float)) and abs(x - y) > SAME_ATOL
 
 
 def _numbers(value: object) -> TypeGuard[Sequence[float]]:

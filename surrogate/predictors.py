@@ -115,7 +115,10 @@ def _mass(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:
     if len(points) == 0:
         return np.zeros(len(z))
     scale = (lengthscale**2) * z.shape[1]
-    return np.exp(-0.5 * squared_distances(z, points) / scale).sum(axis=1)
+    similarity = squared_distances(z, points)
+    similarity *= -0.5
+    similarity /= scale
+    return np.exp(similarity, out=similarity).sum(axis=1)
 
 
 def _nearest_reach(z: np.ndarray, points: np.ndarray, lengthscale: float) -> np.ndarray:

@@ -275,3 +275,28 @@ def test_among_near_equal_candidates_a_preferred_hint_wins_over_the_most_spread(
     assert scored[0].x == spread[0].x  # a hint only scored: the most spread still wins
     hinted = maximize_batch(flat, HINT_SPACE, exclude=[child], seed=2, hints=[near_it], preferred=1)
     assert hinted[0].x["pose"] == pytest.approx(near_it["pose"])
+
+
+def test_terms_of_one_type_asked_together_score_as_each_alone(mpf: MPF) -> None:
+    """One type bound three times (once with a fixed label, as a lookahead request binds it)
+    beside another: the stacked call gives each term's own values."""
+    space = {**SPACE, "dir2": SPACE["dir"], "pose2": SPACE["pose"]}
+    a, b = (term.predictor for term in mpf.terms)
+    terms = [
+        ConstraintTerm.build("a", a, SPACE, BIND, {}),
+        ConstraintTerm.build("b", b, SPACE, BIND, {}),
+        ConstraintTerm.build("a", a, SPACE, {"dir": "dir2", "pose": "pose2"}, {}),
+        ConstraintTerm.build("a", a, SPACE, {"dir": "dir", "pose": "pose2"}, {"dir": "top"}),
+    ]
+    rng = np.random.default_rng(3)
+    points = [
+        {"dir": DIRS[rng.integers(5)], "pose": rng.random(2).tolist()}
+        | {"dir2": DIRS[rng.integers(5)], "pose2": rng.random(2).tolist()}
+        for _ in range(40)
+    ]
+    cols = SpaceEncoder(space).columns(points)
+    together = MPF(terms).per_term(cols)
+    alone = np.stack([term.proba(cols) for term in terms])
+    assert together.shape == (4, 40)
+    np.testing.assert_array_equal(together, alone)
+    assert not np.array_equal(together[0], together[2])

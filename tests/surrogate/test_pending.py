@@ -36,6 +36,11 @@ def test_a_point_at_the_suggested_values_answers_it_and_one_elsewhere_does_not()
         ([0.1, 0.2], ["0.1", 0.2]),
         ("top", "top"),
         ("top", [0.1]),
+        ([0.9, 0.2], [0.1, 0.2]),
+        ([1, "x"], [2, "x"]),
+        ([0.1], [0.1, 0.1]),
+        ([0.2], [0.1, 0.2]),
+        ([[0.1, 0.2]], [[0.9, 0.2]]),
     ],
 )
 def test_same_agrees_with_numpy_allclose(a: object, b: object) -> None:
