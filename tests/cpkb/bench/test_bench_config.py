@@ -79,10 +79,10 @@ def test_the_embedded_services_settings_are_pinned_with_the_results(
 ) -> None:
     from server.settings import surrogate_overrides
 
-    monkeypatch.setenv("CPKB_SURROGATE__ADDITIVE", "choices")
+    monkeypatch.setenv("CPKB_SURROGATE__BALANCE_CLASSES", "false")
     monkeypatch.setenv("CPKB_PORT", "8123")  # not a surrogate setting: results do not depend on it
     service = surrogate_overrides()
-    assert service == {"surrogate.additive": "choices"}
+    assert service == {"surrogate.balance_classes": False}
     out = tmp_path / "out"
     scenarios = [Scenario("analytic:desk", "quasi-random", 0)]
     done = run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50, service=service)
