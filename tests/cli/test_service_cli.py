@@ -106,7 +106,10 @@ def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Pat
 
 
 @pytest.mark.skipif(not hasattr(os, "nice"), reason="no process priorities on this platform")
-@pytest.mark.parametrize("nice", [None, "0", "3"])
+@pytest.mark.parametrize(
+    "nice",
+    [None, pytest.param("0", marks=pytest.mark.slow), pytest.param("3", marks=pytest.mark.slow)],
+)
 def test_serve_runs_below_the_priority_it_was_started_with(tmp_path: Path, nice: str | None):
     """Planners sharing the machine come first (CPKB_SURROGATE__NICE, 5 unless set)."""
     env = {k: v for k, v in os.environ.items() if k != "CPKB_SURROGATE__NICE"}
@@ -136,6 +139,7 @@ def _affinities(pid: int) -> list[set[int]]:
     return [os.sched_getaffinity(int(tid)) for tid in os.listdir(f"/proc/{pid}/task")]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
     reason="needs Linux CPU affinity and two cores",
