@@ -76,8 +76,10 @@ def test_points_survive_a_restart_and_show_in_cpkb_types(
     "command",
     [("types",), ("kb", "list"), ("kb", "create", "x"), ("kb", "delete", "x"), ("bindings",)],
 )
-def test_unreachable_server_is_one_line_exit_3_for_every_command(command: tuple[str, ...]) -> None:
-    out = cpkb(*command, "--url", f"http://127.0.0.1:{free_port()}")
+def test_unreachable_server_is_one_line_exit_3_for_every_command(
+    command: tuple[str, ...], capfd: pytest.CaptureFixture[str]
+) -> None:
+    out = cpkb_in_process(capfd, *command, "--url", f"http://127.0.0.1:{free_port()}")
     assert out.returncode == 3, out.stderr
     assert out.stderr.count("\n") == 1 and "cannot reach the knowledge base" in out.stderr
     assert "Traceback" not in out.stderr
