@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from planner.result import PlanResult, Progress
 from planner.search import PWUCT, SearchProgress, SearchResult
 from planner.search import samplers as sampler_registry
 from planner.world import BindingWorld
+
+if TYPE_CHECKING:
+    from planner.knowledge import KnowledgeClient, KnowledgeSession
 
 ANALYTIC_PREFIX = "analytic:"
 
@@ -72,6 +75,21 @@ class PlanRequest:
     @property
     def label(self) -> str:
         return f"{getattr(self.task, 'name', self.task)} {self.method}"
+
+    def knowledge_session(self, client: KnowledgeClient, world: BindingWorld) -> KnowledgeSession:
+        """This run's session on its knowledge base for `world` (a goal-only task opens one per
+        skeleton it searches)."""
+        from planner.knowledge import KnowledgeSession
+
+        return KnowledgeSession(
+            client,
+            self.kb,
+            world,
+            worker=self.worker or f"{socket.gethostname()}:{os.getpid()}",
+            lookahead=self.config.cp_bo.lookahead,
+            local=self.suggest_in == "planner",
+            config=self.config.knowledge,
+        )
 
 
 def load_world(task: str | Path | BindingWorld, seed: int, *, gui: bool = False) -> BindingWorld:
@@ -173,22 +191,13 @@ def _plan_with_knowledge(
     progress: Callable[[Progress], None] | None,
 ) -> PlanResult:
     from client import CpkbClient
-    from planner.knowledge import KnowledgeSession
 
     config = request.config
     if request.kb_url is None:
         raise ValueError(f"{request.method} needs a knowledge base: give kb_url")
     with CpkbClient(request.kb_url, token=request.token) as client:
         client.create_kb(request.kb, exist_ok=True)
-        session = KnowledgeSession(
-            client,
-            request.kb,
-            world,
-            worker=request.worker or f"{socket.gethostname()}:{os.getpid()}",
-            lookahead=config.cp_bo.lookahead,
-            local=request.suggest_in == "planner",
-            config=config.knowledge,
-        )
+        session = request.knowledge_session(client, world)
         sampler = sampler_registry.make(
             request.method, seed=request.seed, world=world, knowledge=session, config=config
         )

@@ -9,11 +9,7 @@ Kept free of heavy imports so that reading the settings does not load torch.
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import BaseModel, ConfigDict, Field
-
-AdditiveMode = Literal["none", "choices", "decisions"]
 
 
 class OptimizerConfig(BaseModel):
@@ -74,9 +70,6 @@ class SurrogateConfig(BaseModel):
     refit waits in the queue: with many planners at once that queue lags behind the points
     (0: first models only). On: planners at once took fewer rollouts with it, and a planner
     alone, whose queue keeps up, no measurably different number (BENCHMARKS.md, issue 23)."""
-    additive: AdditiveMode = "none"
-    """Additive kernel terms of a type's classifier beside its main kernel (`none`, `choices`
-    or `decisions`: `surrogate.additive`)."""
     balance_classes: bool = True
     """SMOTE the minority class of a type's points up to the majority before a classifier fit,
     as the paper does. Off, the fit sees the points as they are, so its constant mean (P far

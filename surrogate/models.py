@@ -26,7 +26,6 @@ from imblearn.over_sampling import SMOTE
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
 
-from surrogate.additive import AdditiveTerm, Groups, additive_cov
 from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
 from surrogate.predictors import (
@@ -60,23 +59,16 @@ class Fit:
 
 
 class _SVGP(gpytorch.models.ApproximateGP):
-    def __init__(self, inducing: torch.Tensor, groups: Groups = ()) -> None:
+    def __init__(self, inducing: torch.Tensor) -> None:
         dist = gpytorch.variational.CholeskyVariationalDistribution(inducing.shape[0])
         strategy = gpytorch.variational.VariationalStrategy(
             self, inducing, dist, learn_inducing_locations=True, jitter_val=JITTER
         )
         super().__init__(strategy)
         self.mean_module = gpytorch.means.ConstantMean()
-        main = gpytorch.kernels.ScaleKernel(
+        self.covar_module = gpytorch.kernels.ScaleKernel(
             gpytorch.kernels.MaternKernel(nu=2.5, ard_num_dims=inducing.shape[1])
         )
-        terms = [
-            gpytorch.kernels.ScaleKernel(
-                gpytorch.kernels.MaternKernel(nu=2.5, ard_num_dims=len(g), active_dims=g)
-            )
-            for g in groups
-        ]
-        self.covar_module = gpytorch.kernels.AdditiveKernel(main, *terms) if terms else main
 
     def forward(self, x: torch.Tensor) -> gpytorch.distributions.MultivariateNormal:
         return gpytorch.distributions.MultivariateNormal(self.mean_module(x), self.covar_module(x))
@@ -197,12 +189,10 @@ def fit_classifier(
     max_points: int = SurrogateConfig().max_fit_points,
     max_iters: int = 100,
     lr: float = 0.1,
-    groups: Groups = (),
     balance: bool = SurrogateConfig().balance_classes,
 ) -> Fit:
-    """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible), with an additive
-    kernel term over each column group of `groups` (`surrogate.additive.term_groups`), on
-    classes SMOTE-balanced if `balance`.
+    """Fit P(feasible | z) on `z (n, D)`, `y (n,)` bool (True = feasible), on classes
+    SMOTE-balanced if `balance`.
 
     At most `max_points` of them are trained on (`_training_subset`; 0: all), so that a fit of
     a large type costs what one of `max_points` does.
@@ -225,8 +215,6 @@ def fit_classifier(
         return Fit("prior", prior, len(y), time.perf_counter() - t0)
     torch.manual_seed(seed)
     state = warm.warm_state if warm is not None and warm.kind == "vgp" else None
-    if state is not None and [list(g) for g in groups] != state.get("groups", []):
-        state = None  # another kernel: nothing to start from
     last = warm.predictor if warm is not None and state is not None else None
     subset = _training_subset(z, y, max_points, seed, last)
     zb, yb = _balance(z[subset], y[subset], seed) if balance else (z[subset], y[subset])
@@ -235,7 +223,7 @@ def fit_classifier(
         inducing = torch.as_tensor(state["model"]["variational_strategy.inducing_points"])
     else:
         inducing = torch.as_tensor(_kmeans_centres(zb, m, seed))
-    model = _SVGP(inducing.double(), groups).double()
+    model = _SVGP(inducing.double()).double()
     likelihood = gpytorch.likelihoods.BernoulliLikelihood().double()
     reused = state is not None and state["m"] == m
     if state is not None:
@@ -259,10 +247,10 @@ def fit_classifier(
         max_iters // 3 if reused else max_iters,  # a new inducing set starts its posterior anew
         min(lr, WARM_LR) if reused else lr,
     )
-    predictor = _vgp_predictor(model, groups)
+    predictor = _vgp_predictor(model)
     accuracy = float(((predictor.proba(z[subset]) > 0.5) == y[subset]).mean())  # trained on
     weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
-    warm_state = {"m": m, "model": weights, "groups": [list(g) for g in groups]}
+    warm_state = {"m": m, "model": weights}
     return Fit(
         "vgp",
         predictor,
@@ -277,34 +265,23 @@ def fit_classifier(
     )
 
 
-def _scaled(kernel: Any) -> tuple[np.ndarray, float]:
-    """A ScaleKernel(Matern)'s lengthscales `(d,)` and outputscale."""
-    lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).copy()
-    return lengthscale, float(kernel.outputscale)
-
-
-def _vgp_predictor(model: _SVGP, groups: Groups = ()) -> VGPPredictor:
+def _vgp_predictor(model: _SVGP) -> VGPPredictor:
     with torch.no_grad():
         strategy = model.variational_strategy
         inducing = strategy.inducing_points.detach().numpy().copy()
-        kernels = list(model.covar_module.kernels) if groups else [model.covar_module]
-        lengthscale, outputscale = _scaled(kernels[0])
-        terms = tuple(
-            AdditiveTerm(np.asarray(g, dtype=float), *_scaled(k))
-            for g, k in zip(groups, kernels[1:], strict=True)
-        )
+        kernel = model.covar_module
+        lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).copy()
+        outputscale = float(kernel.outputscale)
         dist = strategy._variational_distribution
         m_v = dist.variational_mean.detach().numpy()
         chol_s = dist.chol_variational_covar.detach().numpy()
     constant = float(model.mean_module.constant.detach())
     kzz = matern52(inducing, inducing, lengthscale, outputscale) + JITTER * np.eye(len(inducing))
-    if terms:
-        kzz += additive_cov(inducing, inducing, terms)
     l_inv = np.linalg.inv(np.linalg.cholesky(kzz))
     s = np.tril(chol_s) @ np.tril(chol_s).T
     a = l_inv.T @ m_v
     b = l_inv.T @ (s - np.eye(len(inducing))) @ l_inv
-    return VGPPredictor(inducing, lengthscale, outputscale, constant, a, b, terms)
+    return VGPPredictor(inducing, lengthscale, outputscale, constant, a, b)
 
 
 class _ExactGP(gpytorch.models.ExactGP):

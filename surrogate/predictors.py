@@ -16,7 +16,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
-from surrogate.additive import AdditiveTerm, additive_cov, terms_variance
 from surrogate.kernels import matern52, squared_distances
 
 JITTER = 1e-6
@@ -200,8 +199,7 @@ class UnseenChoices:
 @dataclass(frozen=True)
 class VGPPredictor:
     """Cached predictive terms of a whitened variational GP: mean = c + K_xz a,
-    var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var)). The kernel
-    is the ARD Matern over all inputs plus the `terms` (`surrogate.additive`), if any."""
+    var = k_xx + rowsum((K_xz B) * K_xz), P(feasible) = Phi(mean / sqrt(1 + var))."""
 
     inducing: np.ndarray  # (m, D)
     lengthscale: np.ndarray  # (D,)
@@ -209,18 +207,11 @@ class VGPPredictor:
     constant: float
     a: np.ndarray  # (m,) = L^-T m_v
     b: np.ndarray  # (m, m) = L^-T (S - I) L^-1
-    terms: tuple[AdditiveTerm, ...] = ()
-
-    @property
-    def prior_variance(self) -> float:
-        return self.outputscale + terms_variance(self.terms)
 
     def latent(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         kxz = matern52(z, self.inducing, self.lengthscale, self.outputscale)
-        if self.terms:
-            kxz = kxz + additive_cov(z, self.inducing, self.terms)
         mean = self.constant + kxz @ self.a
-        var = self.prior_variance + JITTER + ((kxz @ self.b) * kxz).sum(1)
+        var = self.outputscale + JITTER + ((kxz @ self.b) * kxz).sum(1)
         return mean, np.maximum(var, 1e-12)
 
     def proba(self, z: np.ndarray) -> np.ndarray:
@@ -228,10 +219,10 @@ class VGPPredictor:
         return ndtr(mean / np.sqrt(1.0 + var))
 
     def uncertainty(self, z: np.ndarray) -> np.ndarray:
-        """The latent posterior sd over the prior's (`prior_variance`): 1 away from the
-        inducing points, lower where the variational posterior has learnt from data."""
+        """The latent posterior sd over the prior's (outputscale): 1 away from the inducing
+        points, lower where the variational posterior has learnt from data."""
         _, var = self.latent(z)
-        return np.sqrt(np.clip(var / (self.prior_variance + JITTER), 0.0, 1.0))
+        return np.sqrt(np.clip(var / (self.outputscale + JITTER), 0.0, 1.0))
 
 
 @dataclass(frozen=True)

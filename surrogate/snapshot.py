@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from surrogate.additive import AdditiveTerm
 from surrogate.domains import space_from_json, space_to_json
 from surrogate.predictors import (
     FeasibilityPredictor,
@@ -98,14 +97,6 @@ def dump(predictor: FeasibilityPredictor) -> Snapshot:
                 "constant": predictor.constant,
                 "a": _array(predictor.a),
                 "b": _array(predictor.b),
-                "terms": [
-                    {
-                        "dims": _array(t.dims),
-                        "lengthscale": _array(t.lengthscale),
-                        "outputscale": t.outputscale,
-                    }
-                    for t in predictor.terms
-                ],
             }
         case LabelRegressionPredictor():
             return {"kind": "label-regression", "regression": _regression(predictor.regression)}
@@ -140,6 +131,8 @@ def load(snapshot: Any, where: str = "predictor") -> FeasibilityPredictor:
                 seen,
             )
         if kind == "vgp":
+            if snapshot.get("terms"):  # a fit of the retired `surrogate.additive` kernel
+                raise SnapshotError(f"{where}: a vgp with additive kernel terms (retired)")
             return VGPPredictor(
                 _unarray(snapshot["inducing"], f"{where}.inducing"),
                 _unarray(snapshot["lengthscale"], f"{where}.lengthscale"),
@@ -147,14 +140,6 @@ def load(snapshot: Any, where: str = "predictor") -> FeasibilityPredictor:
                 float(snapshot["constant"]),
                 _unarray(snapshot["a"], f"{where}.a"),
                 _unarray(snapshot["b"], f"{where}.b"),
-                tuple(
-                    AdditiveTerm(
-                        _unarray(t["dims"], f"{where}.terms.dims"),
-                        _unarray(t["lengthscale"], f"{where}.terms.lengthscale"),
-                        float(t["outputscale"]),
-                    )
-                    for t in snapshot.get("terms", [])
-                ),
             )
         if kind == "label-regression":
             r = snapshot["regression"]

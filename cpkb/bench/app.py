@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from rich.console import Console
 
@@ -44,6 +44,9 @@ from cpkb.bench.variants import Variant
 from cpkb.cli.tables import whole_names_table
 from server.cpus import format_cpu_list
 from server.settings import surrogate_overrides
+
+if TYPE_CHECKING:
+    from planner.result import PlanResult
 
 
 @dataclass(frozen=True)
@@ -79,7 +82,7 @@ class BenchSettings:
 
 def plan_run(
     task: str, method: str, seed: int, config: Mapping[str, Any] | None = None, **kwargs: Any
-) -> object:
+) -> PlanResult:
     """The real planner run (the bench's default run function);
     `config`: the dotted overrides of the planner's knobs."""
     from planner.config import PlanConfig

@@ -34,7 +34,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cpkb.bench.records import as_record
+from cpkb.bench.records import RunResult, as_record
 
 POLL_S = 0.02
 
@@ -57,7 +57,7 @@ def tree_seeds(seed: int, trees: int) -> list[int]:
 class TreeJob:
     """One tree of a portfolio, pickled to its process."""
 
-    run_fn: Callable[..., Any]
+    run_fn: Callable[..., RunResult]
     task: str
     method: str
     seed: int
@@ -74,7 +74,7 @@ class Portfolio:
     """`run_fn` as `trees` independent trees at once (a run function itself); `cores`: the core
     of each tree (empty: the trees are not pinned)."""
 
-    run_fn: Callable[..., Any]
+    run_fn: Callable[..., RunResult]
     trees: int
     cores: Sequence[int] = field(default_factory=tuple)
 

@@ -34,15 +34,15 @@ from typing import Any, Protocol
 
 from cpkb.bench.clocks import clock_fields
 from cpkb.bench.portfolio import Portfolio
-from cpkb.bench.records import as_record
+from cpkb.bench.records import RunResult, as_record
 from cpkb.bench.results import ResultStore
 from cpkb.bench.scenarios import Scenario
 from server.cpus import pin_process
 from server.lifeline import exit_with_parent
 
-RunFn = Callable[..., Any]
+RunFn = Callable[..., RunResult]
 """`run_fn(task, method, seed, *, max_rollouts, kb_url, kb, quiet, **extra)` -> a result with
-`to_json()` (dict or JSON text) or a mapping, holding at least `solved`, `rollouts`, `wall_s`.
+`to_json()` or a mapping, holding at least `solved`, `rollouts`, `wall_s`.
 With planner knobs set, `extra` has `config`: their dotted overrides (`planner.config`)."""
 
 KB_NAME_MAX = 64

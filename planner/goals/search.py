@@ -15,8 +15,6 @@ taught steers the others' suggestions.
 
 from __future__ import annotations
 
-import os
-import socket
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -164,17 +162,7 @@ def plan_goal(
                 stack.callback(world.scene.close)
             branch.world = world
             if client is not None:
-                from planner.knowledge import KnowledgeSession
-
-                branch.session = KnowledgeSession(
-                    client,
-                    request.kb,
-                    world,
-                    worker=request.worker or f"{socket.gethostname()}:{os.getpid()}",
-                    lookahead=config.cp_bo.lookahead,
-                    local=request.suggest_in == "planner",
-                    config=config.knowledge,
-                )
+                branch.session = request.knowledge_session(client, world)
                 stack.callback(branch.session.close)
                 if branch.solved_before:
                     # Its first rollout follows the stored binding list; the types are matched

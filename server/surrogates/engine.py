@@ -47,7 +47,6 @@ from server.settings import ServiceSurrogateConfig
 from server.surrogates.pending_db import DatabasePendingBook
 from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
-from surrogate.additive import Groups, term_groups
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder, encoder_for
 from surrogate.models import MIN_POINTS, Fit, fit_classifier, warm_up
@@ -452,7 +451,7 @@ class SurrogateEngine:
             with self._cond:  # the instant lane may install a fit meanwhile
                 z, y, n = entry.z, entry.y, entry.n_points
                 warm = entry.background  # see the module's docstring
-            fit = self._fit(z, y, warm, term_groups(entry.encoder, self.config.additive))
+            fit = self._fit(z, y, warm)
             if self.shared is not None:
                 self.shared.save(entry.origin[0], fit, entry.origin[1])
         self.fits += 1
@@ -513,7 +512,7 @@ class SurrogateEngine:
         timer.daemon = True
         timer.start()
 
-    def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None, groups: Groups = ()) -> Fit:
+    def _fit(self, z: np.ndarray, y: np.ndarray, warm: Fit | None) -> Fit:
         config = self.config
         args = (
             z,
@@ -522,7 +521,6 @@ class SurrogateEngine:
             warm,
             config.max_inducing,
             config.max_fit_points,
-            groups,
             config.balance_classes,
         )
         fitter = self._fitter_for_next_fit()
@@ -589,7 +587,6 @@ class SurrogateEngine:
             max_inducing=config.max_inducing,
             max_points=config.max_fit_points,
             max_iters=config.instant_fit_iters,
-            groups=term_groups(entry.encoder, config.additive),
             balance=config.balance_classes,
         )
         seen = seen_choices(entry.encoder, z[:n])

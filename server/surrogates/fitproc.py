@@ -7,7 +7,6 @@ import numpy as np
 import torch
 
 from server.lifeline import exit_with_parent
-from surrogate.additive import Groups
 from surrogate.config import SurrogateConfig
 from surrogate.models import Fit, fit_classifier, warm_up
 
@@ -30,7 +29,6 @@ def fit_job(
     warm: Fit | None,
     max_inducing: int,
     max_points: int = SurrogateConfig().max_fit_points,
-    groups: Groups = (),
     balance: bool = SurrogateConfig().balance_classes,
 ) -> Fit:
     return fit_classifier(
@@ -40,6 +38,5 @@ def fit_job(
         warm=warm,
         max_inducing=max_inducing,
         max_points=max_points,
-        groups=groups,
         balance=balance,
     )

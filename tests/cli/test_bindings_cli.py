@@ -12,6 +12,7 @@ from client import CpkbClient
 from contract.bindings import BindingIn
 
 
+@pytest.mark.slow
 def test_bindings_lists_what_planners_found_and_refuses_a_bad_limit(
     db_url: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:

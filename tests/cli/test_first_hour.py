@@ -21,6 +21,7 @@ from planner.tasks.generator.suite import ProbeSettings, probe_text
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_serve_prints_a_url_that_opens_the_dashboard(tmp_path: Path) -> None:
     port = free_port()
     command = [sys.executable, "-m", "cpkb", "serve", "--port", str(port)]
@@ -45,6 +46,7 @@ def test_a_wildcard_address_is_served_at_loopback() -> None:
     assert served_url("kb.lab", 8000) == "http://kb.lab:8000/"
 
 
+@pytest.mark.slow
 def test_plans_binding_line_is_one_json_line_when_piped() -> None:
     out = subprocess.run(
         [

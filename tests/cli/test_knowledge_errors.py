@@ -141,18 +141,21 @@ def test_help_documents_the_knowledge_base_exit_status(command: str, status_1: s
     assert f"{KB_UNAVAILABLE_STATUS} when the knowledge base cannot be reached" in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("action", ["create", "delete"])
 def test_kb_writes_refused_a_token_exit_3_as_plan_does(guarded: LiveServer, action: str) -> None:
     out = cpkb("kb", action, "x", "--kb-url", guarded.url, "--token", "wrong")
     assert "check --token or CPKB_TOKEN" in one_line_error(out, "kb")
 
 
+@pytest.mark.slow
 def test_demo_with_no_service_at_the_url_is_one_line() -> None:
     url = f"http://127.0.0.1:{free_port()}"
     out = cpkb("demo", "--analytic", "--seeds", "1", "--kb-url", url)
     assert f"cannot reach the knowledge base at {url}" in one_line_error(out, "demo")
 
 
+@pytest.mark.slow
 def test_plan_with_a_knowledge_base_that_does_not_exist_says_so(guarded: LiveServer) -> None:
     out = cpkb(*PLAN, "--kb-url", guarded.url, "--kb", "labb", "--token", TOKEN)
     assert out.returncode == 2, out.stderr
@@ -163,6 +166,7 @@ def test_plan_with_a_knowledge_base_that_does_not_exist_says_so(guarded: LiveSer
         assert "labb" not in [kb.name for kb in client.list_kbs()]
 
 
+@pytest.mark.slow
 def test_plan_in_an_embedded_base_that_does_not_exist_says_so(tmp_path: Path) -> None:
     db = tmp_path / "kb.sqlite"
     out = cpkb(*PLAN, "--kb", "labb", CPKB_DATABASE_URL=f"sqlite:///{db}")

@@ -76,8 +76,10 @@ def test_points_survive_a_restart_and_show_in_cpkb_types(
     "command",
     [("types",), ("kb", "list"), ("kb", "create", "x"), ("kb", "delete", "x"), ("bindings",)],
 )
-def test_unreachable_server_is_one_line_exit_3_for_every_command(command: tuple[str, ...]) -> None:
-    out = cpkb(*command, "--url", f"http://127.0.0.1:{free_port()}")
+def test_unreachable_server_is_one_line_exit_3_for_every_command(
+    command: tuple[str, ...], capfd: pytest.CaptureFixture[str]
+) -> None:
+    out = cpkb_in_process(capfd, *command, "--url", f"http://127.0.0.1:{free_port()}")
     assert out.returncode == 3, out.stderr
     assert out.stderr.count("\n") == 1 and "cannot reach the knowledge base" in out.stderr
     assert "Traceback" not in out.stderr
@@ -106,7 +108,10 @@ def test_serve_on_a_port_in_use_fails_before_touching_the_database(tmp_path: Pat
 
 
 @pytest.mark.skipif(not hasattr(os, "nice"), reason="no process priorities on this platform")
-@pytest.mark.parametrize("nice", [None, "0", "3"])
+@pytest.mark.parametrize(
+    "nice",
+    [None, pytest.param("0", marks=pytest.mark.slow), pytest.param("3", marks=pytest.mark.slow)],
+)
 def test_serve_runs_below_the_priority_it_was_started_with(tmp_path: Path, nice: str | None):
     """Planners sharing the machine come first (CPKB_SURROGATE__NICE, 5 unless set)."""
     env = {k: v for k, v in os.environ.items() if k != "CPKB_SURROGATE__NICE"}
@@ -136,6 +141,7 @@ def _affinities(pid: int) -> list[set[int]]:
     return [os.sched_getaffinity(int(tid)) for tid in os.listdir(f"/proc/{pid}/task")]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
     reason="needs Linux CPU affinity and two cores",

@@ -1,4 +1,5 @@
-"""One live server per backend for this directory's module; each test gets its own kb."""
+"""One live server per backend for this directory's tests (a server takes seconds to start);
+each test gets its own kb."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from client import CpkbClient
 
 
 @pytest.fixture(
-    scope="module", params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)]
+    scope="session", params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)]
 )
 def shared_server(
     request: pytest.FixtureRequest,

@@ -86,6 +86,7 @@ def select_default_kb() -> Any:
     return select(KnowledgeBaseRow.id).where(KnowledgeBaseRow.name == "default")
 
 
+@pytest.mark.slow
 def test_a_stored_nan_binding_is_skipped_by_every_reader(
     sqlite_url: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:

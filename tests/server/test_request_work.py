@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import pytest
 from fastapi.testclient import TestClient
 from service_support import make_graph, make_point, run_live_server
 
@@ -71,6 +72,7 @@ def test_the_budget_is_a_setting(sqlite_url: str) -> None:
     assert two.status_code == 200 and three.status_code == 413
 
 
+@pytest.mark.slow
 def test_health_and_reads_answer_while_heavy_matches_run(sqlite_url: str, tmp_path: Path) -> None:
     env = {"CPKB_SURROGATE__ENABLED": "false"}
     with run_live_server(sqlite_url, tmp_path / "server.log", env=env) as live:

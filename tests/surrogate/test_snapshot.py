@@ -26,13 +26,10 @@ def test_every_kind_comes_back_answering_the_same() -> None:
     z, y = _data(40, 0)
     probe = np.random.default_rng(1).random((64, 4))
     vgp = fit_classifier(z, y, seed=0, max_iters=20).predictor
-    additive = fit_classifier(z, y, seed=0, max_iters=20, groups=((3,), (0, 1, 2))).predictor
-    assert len(additive.terms) == 2
     prior = PriorPredictor(z[y], z[~y])
     predictors = [
         prior,
         vgp,
-        additive,
         fit_label_regression(z, y, seed=0).predictor,
         RecentPoints(vgp, z[:2], z[2:5]),
         UnseenChoices(RecentPoints(vgp, z[:1], z[1:2]), prior, ((slice(3, 4), np.ones((1, 1))),)),
@@ -51,5 +48,10 @@ def test_a_bad_snapshot_is_refused_with_where_it_is_wrong() -> None:
         snapshot.load({**good, "feasible": {"shape": [3, 2], "data": "AAAA"}})
     with pytest.raises(snapshot.SnapshotError, match="lacks 'infeasible'"):
         snapshot.load({"kind": "prior", "feasible": good["feasible"]})
+    z, y = _data(40, 0)
+    vgp = snapshot.dump(fit_classifier(z, y, seed=0, max_iters=20).predictor)
+    terms = [{"dims": vgp["lengthscale"], "lengthscale": vgp["lengthscale"], "outputscale": 1.0}]
+    with pytest.raises(snapshot.SnapshotError, match="additive kernel terms"):
+        snapshot.load({**vgp, "terms": terms})  # a stored fit of the retired kernel: fit anew
     with pytest.raises(TypeError, match="cannot snapshot"):
         snapshot.dump(object())  # type: ignore[arg-type]

@@ -74,15 +74,28 @@ def test_cpkb_bench_names_a_misspelled_knob(tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists()
 
 
+def test_the_surrogate_settings_away_from_their_defaults_are_what_a_bench_pins(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from server.settings import surrogate_overrides
+
+    monkeypatch.setenv("CPKB_SURROGATE__BALANCE_CLASSES", "false")
+    monkeypatch.setenv("CPKB_SURROGATE__OPTIMIZER__GENERATIONS", "3")
+    monkeypatch.setenv("CPKB_PORT", "8123")  # not a surrogate setting: results do not depend on it
+    assert surrogate_overrides() == {
+        "surrogate.balance_classes": False,
+        "surrogate.optimizer.generations": 3,
+    }
+
+
+@pytest.mark.slow
 def test_the_embedded_services_settings_are_pinned_with_the_results(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from server.settings import surrogate_overrides
 
-    monkeypatch.setenv("CPKB_SURROGATE__ADDITIVE", "choices")
-    monkeypatch.setenv("CPKB_PORT", "8123")  # not a surrogate setting: results do not depend on it
+    monkeypatch.setenv("CPKB_SURROGATE__BALANCE_CLASSES", "false")
     service = surrogate_overrides()
-    assert service == {"surrogate.additive": "choices"}
     out = tmp_path / "out"
     scenarios = [Scenario("analytic:desk", "quasi-random", 0)]
     done = run_bench(scenarios, out, plan_run, workers=1, max_rollouts=50, service=service)

@@ -152,6 +152,7 @@ def test_a_cores_bench_pins_the_planner_and_each_tree_to_its_core(tmp_path: Path
     assert pinned == 2
 
 
+@pytest.mark.slow
 def test_a_planner_portfolios_winner_took_the_rollouts_its_tree_takes_alone():
     from cpkb.bench.app import plan_run
 

@@ -47,6 +47,7 @@ def test_without_a_budget_a_run_counts_its_own_time() -> None:
     assert row.solved_rate == pytest.approx(0.5) and row.wall_mean_s == pytest.approx(17.5)
 
 
+@pytest.mark.slow
 def test_a_tiny_budget_leaves_every_run_unsolved_at_the_budget(tmp_path: Path) -> None:
     out = tmp_path / "out"
     scenarios = expand(["analytic:desk"], ["quasi-random"], range(2))
