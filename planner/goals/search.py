@@ -163,6 +163,7 @@ def plan_goal(
         for branch, before in zip(branches, solved_before(stored, task, plans), strict=True):
             branch.solved_before = before
         fewest = min(len(p.moves) for p in plans)
+        ready_s = time.perf_counter() - started
 
         def open_branch(branch: Branch) -> None:
             skeleton = skeleton_task(task, branch.plan)
@@ -260,7 +261,12 @@ def plan_goal(
             winner.session.add_found(winner.found, winner.spent)
         sessions = [b.session for b in opened if b.session is not None]
         tried = ", ".join(f"{b.index + 1}: {b.spent}" for b in opened)
-        notes = [f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}"]
+        notes = [
+            f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}",
+            f"{ready_s:.2f} s before the first turn (K*, the scene, the knowledge base)",
+        ]
+        if winner is None and deadline is not None and time.perf_counter() >= deadline:
+            notes.append("time budget reached")
         earlier = [str(b.index + 1) for b in branches if b.solved_before]
         if earlier:
             notes.append(f"skeletons solved by earlier runs: {', '.join(earlier)}")
