@@ -167,33 +167,55 @@ def top_plans(task: Task, k: int) -> list[Plan]:
     first (K*'s order among plans of one cost). K* is asked for `ASK` times `k`: most of its
     cheapest plans are redundant, and the ones that move a body away and back come after them
     (the non-monotonic problem's)."""
-    plans = [p for p in _kstar(task, ASK * k) if not redundant(task, p)]
-    if not plans:
-        raise TaskError(f"{task.source}: goal: every plan the PDDL planner found is redundant")
-    return sorted(plans, key=lambda p: p.cost)[:k]
+    with PlanSearch(task, k) as search:
+        return search.plans()
 
 
-def _kstar(task: Task, k: int) -> list[Plan]:
-    """The `k` cheapest plans K* prints for the task (fewer where there are fewer)."""
-    names = {_name(n): n for n in (*task.workspace.regions, *task.bodies)}
-    with tempfile.TemporaryDirectory(prefix="cpkb-pddl-") as folder:
-        domain_file, prob = Path(folder) / "domain.pddl", Path(folder) / "problem.pddl"
+class PlanSearch:
+    """K* started on the task in its own process, so that the caller does other work (the
+    scene, the knowledge base) while it plans; `plans()` waits for it (`top_plans`)."""
+
+    def __init__(self, task: Task, k: int) -> None:
+        self.task, self.k = task, k
+        self._folder = tempfile.TemporaryDirectory(prefix="cpkb-pddl-")
+        folder = Path(self._folder.name)
+        domain_file, prob = folder / "domain.pddl", folder / "problem.pddl"
         domain_file.write_text(domain(task.stacking))
         prob.write_text(problem(task))
         command = [
             *(sys.executable, "-m", "kstar_planner"),
-            *(str(domain_file), str(prob), "-k", str(k)),
+            *(str(domain_file), str(prob), "-k", str(ASK * k)),
         ]
+        self._process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=folder
+        )
+
+    def plans(self) -> list[Plan]:
+        task = self.task
         try:
-            out = subprocess.run(
-                command, capture_output=True, text=True, timeout=PLANNER_TIMEOUT_S, cwd=folder
-            )
+            stdout, stderr = self._process.communicate(timeout=PLANNER_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             raise TaskError(
                 f"{task.source}: goal: the PDDL planner found no plan in {PLANNER_TIMEOUT_S} s"
             ) from None
-    plans = parse_plans(out.stdout, names)
-    if not plans:
-        detail = out.stderr.strip().splitlines()[-1:] or ["no plan"]
-        raise TaskError(f"{task.source}: goal: the PDDL planner found no plan ({detail[0]})")
-    return plans
+        names = {_name(n): n for n in (*task.workspace.regions, *task.bodies)}
+        found = parse_plans(stdout, names)
+        if not found:
+            detail = stderr.strip().splitlines()[-1:] or ["no plan"]
+            raise TaskError(f"{task.source}: goal: the PDDL planner found no plan ({detail[0]})")
+        plans = [p for p in found if not redundant(task, p)]
+        if not plans:
+            raise TaskError(f"{task.source}: goal: every plan the PDDL planner found is redundant")
+        return sorted(plans, key=lambda p: p.cost)[: self.k]
+
+    def close(self) -> None:
+        if self._process.poll() is None:
+            self._process.kill()
+            self._process.wait()
+        self._folder.cleanup()
+
+    def __enter__(self) -> PlanSearch:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from contract.models import MAX_LABEL
-from planner.goals.pddl import Plan, top_plans
+from planner.goals.pddl import Plan, PlanSearch
 from planner.goals.skeletons import describe, skeleton_task
 from planner.search import PWUCT, SearchProgress
 from planner.search import samplers as sampler_registry
@@ -111,13 +111,17 @@ def next_branch(branches: list[Branch], turns: int, fewest: int, blamed: set[str
     return min(candidates, key=lambda b: (priority(b, fewest, blamed), b.index))
 
 
-def solved_before(client: Any, kb: str, task: Task, plans: list[Plan]) -> list[bool]:
-    """Per plan, whether the knowledge base holds a binding list an earlier run of the task found
-    for its skeleton (found bindings are keyed by the task and a digest of the skeleton)."""
+def stored_skeletons(client: Any, kb: str, task: Task) -> set[str]:
+    """The digests of the skeletons the knowledge base holds binding lists for, found by
+    earlier runs of the task (found bindings are keyed by the task and the skeleton's digest)."""
+    return {b.skeleton for b in client.bindings(kb, task=task.name[:MAX_LABEL]).bindings}
+
+
+def solved_before(stored: set[str], task: Task, plans: list[Plan]) -> list[bool]:
+    """Per plan, whether its skeleton's digest is among `stored`."""
     from planner.knowledge.found import skeleton_digest
     from planner.tasks import build_skeleton
 
-    stored = {b.skeleton for b in client.bindings(kb, task=task.name[:MAX_LABEL]).bindings}
     return [
         bool(stored) and skeleton_digest(build_skeleton(skeleton_task(task, p))) in stored
         for p in plans
@@ -130,16 +134,17 @@ def plan_goal(
     """`run_plan` for a task without a skeleton (see the module docstring)."""
     from planner.knowledge.stats import KnowledgeStats
     from planner.result import PlanResult, Progress
+    from planner.sim.scene import Scene
     from planner.sim.world import PyBulletWorld
 
-    plans = top_plans(task, PLANS)
-    branches = [Branch(plan, i) for i, plan in enumerate(plans)]
-    fewest = min(len(p.moves) for p in plans)
     blame = Blame(set(task.bodies))
     config = request.config
     knowledge = sampler_registry.uses_knowledge(request.method)
     with ExitStack() as stack:
+        # K* plans in its own process while the knowledge base is asked and the scene loads.
+        pending = stack.enter_context(PlanSearch(task, PLANS))
         client = None
+        stored: set[str] = set()
         if knowledge:
             from client import CpkbClient
 
@@ -148,18 +153,19 @@ def plan_goal(
             client = stack.enter_context(CpkbClient(request.kb_url, token=request.token))
             client.create_kb(request.kb, exist_ok=True)
             if config.knowledge.follow_found:
-                stored = solved_before(client, request.kb, task, plans)
-                for branch, before in zip(branches, stored, strict=True):
-                    branch.solved_before = before
-        scene = None
+                stored = stored_skeletons(client, request.kb, task)
+        scene = Scene(task, gui=request.gui)
+        stack.callback(scene.close)
+        plans = pending.plans()
+        branches = [Branch(plan, i) for i, plan in enumerate(plans)]
+        for branch, before in zip(branches, solved_before(stored, task, plans), strict=True):
+            branch.solved_before = before
+        fewest = min(len(p.moves) for p in plans)
+        ready_s = time.perf_counter() - started
 
         def open_branch(branch: Branch) -> None:
-            nonlocal scene
             skeleton = skeleton_task(task, branch.plan)
             world = PyBulletWorld(skeleton, seed=request.seed, gui=request.gui, scene=scene)
-            if scene is None:
-                scene = world.scene
-                stack.callback(world.scene.close)
             branch.world = world
             if client is not None:
                 branch.session = request.knowledge_session(client, world)
@@ -243,7 +249,12 @@ def plan_goal(
             winner.session.add_found(winner.found, winner.spent)
         sessions = [b.session for b in opened if b.session is not None]
         tried = ", ".join(f"{b.index + 1}: {b.spent}" for b in opened)
-        notes = [f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}"]
+        notes = [
+            f"{len(plans)} skeletons from K*; rollouts by skeleton {tried}",
+            f"{ready_s:.2f} s before the first turn (K*, the scene, the knowledge base)",
+        ]
+        if winner is None and deadline is not None and time.perf_counter() >= deadline:
+            notes.append("time budget reached")
         earlier = [str(b.index + 1) for b in branches if b.solved_before]
         if earlier:
             notes.append(f"skeletons solved by earlier runs: {', '.join(earlier)}")

@@ -114,3 +114,14 @@ def test_plan_solves_a_goal_only_task_from_the_command_line(
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["solved"] and result["task"] == "blocked"
     assert any("(move blocker to " in note for note in result["notes"])
+
+
+def test_a_time_budget_stops_the_turns() -> None:
+    # K* and the scene alone take longer than the budget: no turn starts.
+    result = run_plan(str(BLOCKED), "quasi-random", 0, time_budget_s=0.001)
+    assert not result.solved and result.rollouts == 0
+    assert "time budget reached" in result.notes
+    assert any(
+        note.endswith("before the first turn (K*, the scene, the knowledge base)")
+        for note in result.notes
+    )

@@ -8,7 +8,14 @@ from pathlib import Path
 
 from contract.bindings import BindingIn
 from planner.goals.pddl import Move, top_plans
-from planner.goals.search import TURN, Branch, next_branch, priority, solved_before
+from planner.goals.search import (
+    TURN,
+    Branch,
+    next_branch,
+    priority,
+    solved_before,
+    stored_skeletons,
+)
 from planner.goals.skeletons import skeleton_task
 from planner.knowledge.found import skeleton_digest
 from planner.knowledge.memory import InMemoryKnowledge
@@ -29,7 +36,8 @@ def test_the_skeleton_an_earlier_run_solved_is_found_and_run_first() -> None:
     )
     memory = InMemoryKnowledge()
     memory.create_kb("kb")
-    assert solved_before(memory, "kb", task, plans) == [False] * len(plans)
+    assert stored_skeletons(memory, "kb", task) == set()
+    assert solved_before(set(), task, plans) == [False] * len(plans)
     digest = skeleton_digest(build_skeleton(skeleton_task(task, plans[solved])))
     memory.add_binding(
         "kb",
@@ -43,7 +51,9 @@ def test_the_skeleton_an_earlier_run_solved_is_found_and_run_first() -> None:
             task="other", skeleton="0" * 64, run="earlier", rollout=3, bindings={"#dir1": "top"}
         ),
     )
-    marks = solved_before(memory, "kb", task, plans)
+    stored = stored_skeletons(memory, "kb", task)
+    assert stored == {digest}
+    marks = solved_before(stored, task, plans)
     assert marks == [i == solved for i in range(len(plans))]
     branches = [
         Branch(p, i, solved_before=m) for i, (p, m) in enumerate(zip(plans, marks, strict=True))
