@@ -25,6 +25,7 @@ import torch
 from imblearn.over_sampling import SMOTE
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
+from threadpoolctl import OpenBLASController, threadpool_limits
 
 from surrogate.config import SurrogateConfig
 from surrogate.kernels import matern52
@@ -75,6 +76,19 @@ class _SVGP(gpytorch.models.ApproximateGP):
 
 
 _threads_lock = threading.Lock()
+
+
+def use_threads(n: int) -> None:
+    """Run this process's torch and BLAS on `n` threads, and the OpenMP of the calling thread
+    (scikit-learn's k-means, torch) on as many. The service computes in many threads at once
+    (a request each, the instant lane) and its fit worker beside them: threads of BLAS's own on
+    top spin for cores that others hold, and on a loaded machine a suggestion's matrix
+    products cost several times the CPU (BENCHMARKS.md, "Hard problems")."""
+    torch.set_num_threads(n)
+    # OpenBLAS's pool is the process's: threadpoolctl lets one thread set it, the first that
+    # tries (scikit-learn's own limits, in a fit, may have been first).
+    OpenBLASController.clear_controlling_thread(force=True)
+    threadpool_limits(n)
 
 
 @contextmanager

@@ -49,7 +49,7 @@ from server.surrogates.shared import FitShare
 from server.surrogates.worker import ChildProcessFitter, Fitter, ThreadFitter, WorkerDied
 from surrogate.domains import Domain, space_from_json
 from surrogate.encoding import SpaceEncoder, encoder_for
-from surrogate.models import MIN_POINTS, Fit, fit_classifier, warm_up
+from surrogate.models import MIN_POINTS, Fit, fit_classifier, use_threads, warm_up
 from surrogate.pending import Pending, PendingBook
 from surrogate.predictors import FeasibilityPredictor
 from surrogate.sources import Seen, needs_model, prior, seen_choices, served_predictor
@@ -60,7 +60,8 @@ Key = tuple[str, str]
 ASKED, FIRST, REFRESH = 0, 1, 2  # queue priorities, the lowest served first
 _WARMED = threading.Event()  # torch's first-fit cost is paid once per process
 _WARM_LOCK = threading.Lock()
-FIT_THREADS = 1  # the fit worker's torch threads: the other core is the server's
+FIT_THREADS = 1  # the fit worker's threads: the other core is the server's
+REQUEST_THREADS = 1  # BLAS's threads in the service's process, whose requests run in parallel
 
 
 @dataclass
@@ -142,6 +143,7 @@ class SurrogateEngine:
             if self._thread is not None or (self._stopping and not after_stop):
                 return
             self._stopping = False
+            use_threads(REQUEST_THREADS)
             self._thread = threading.Thread(target=self._run, name="cpkb-surrogates", daemon=True)
             self._thread.start()
             if self.config.instant_fit_points > 0:
@@ -535,6 +537,7 @@ class SurrogateEngine:
     def _run_first(self) -> None:
         """The instant lane: pays this process's first-fit cost at once (once per process),
         then fits each new type it is given (`_first_model`) until the engine stops."""
+        use_threads(REQUEST_THREADS)  # OpenMP's count is the calling thread's
         with _WARM_LOCK:
             if not _WARMED.is_set():
                 warm_up()

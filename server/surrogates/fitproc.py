@@ -4,11 +4,10 @@ training never holds the server's GIL). Imports only the surrogate library and t
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from server.lifeline import exit_with_parent
 from surrogate.config import SurrogateConfig
-from surrogate.models import Fit, fit_classifier, warm_up
+from surrogate.models import Fit, fit_classifier, use_threads, warm_up
 
 
 def init_worker(threads: int, server_pid: int) -> None:
@@ -18,7 +17,7 @@ def init_worker(threads: int, server_pid: int) -> None:
     and they were guided for hundreds of rollouts by fits that knew none of their failures
     (BENCHMARKS.md, "Measurements behind the defaults")."""
     exit_with_parent(server_pid)
-    torch.set_num_threads(threads)
+    use_threads(threads)
     warm_up()
 
 
