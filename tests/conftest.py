@@ -5,7 +5,10 @@
   server, default postgresql+psycopg://postgres@127.0.0.1:5432/test), dropped afterwards;
   skipped with the reason when the server cannot be reached.
 - `db_url`: parametrised over both ("sqlite", "postgres"): a test written once runs on each.
-- `app_client`: a TestClient over `create_app` on `db_url`.
+- `app_db_url`: `db_url`, its SQLite file a copy of one brought to head once per session
+  (`migrated_sqlite`), so that an in-process app does not migrate an empty file anew; the
+  migration tests, `sqlite_url` and the live servers still start from an empty one.
+- `app_client`: a TestClient over `create_app` on `app_db_url`.
 - `core_client`: the same app with its extension hooks (server.hooks: the surrogate engine)
   removed before start: the core API alone, without fits that slow every test's teardown.
 - `live_server`: `cpkb serve` in a subprocess on a free loopback port, on `db_url`; yields
@@ -28,6 +31,7 @@ from pathlib import Path
 import pytest
 from service_support import (
     LiveServer,
+    at_head,
     fresh_postgres_database,
     postgres_admin_url,
     run_live_server,
@@ -80,26 +84,45 @@ def db_url(request: pytest.FixtureRequest) -> str:
     return request.getfixturevalue(f"{request.param}_url")
 
 
+@pytest.fixture(scope="session")
+def migrated_sqlite(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from server.db import Store
+    from server.schema import prepare_database
+
+    path: Path = tmp_path_factory.mktemp("template") / "kb.sqlite"
+    store = Store.from_url(f"sqlite:///{path}")
+    try:
+        prepare_database(store)
+    finally:
+        store.dispose()
+    return path
+
+
 @pytest.fixture
-def app_client(db_url: str) -> Iterator[object]:
+def app_db_url(db_url: str, migrated_sqlite: Path) -> str:
+    return at_head(db_url, migrated_sqlite)
+
+
+@pytest.fixture
+def app_client(app_db_url: str) -> Iterator[object]:
     from fastapi.testclient import TestClient
 
     from server.app import create_app
     from server.settings import Settings
 
-    with TestClient(create_app(Settings(database_url=db_url))) as client:
+    with TestClient(create_app(Settings(database_url=app_db_url))) as client:
         yield client
 
 
 @pytest.fixture
-def core_client(db_url: str) -> Iterator[object]:
+def core_client(app_db_url: str) -> Iterator[object]:
     from fastapi.testclient import TestClient
 
     from server.app import create_app
     from server.hooks import ServiceHooks
     from server.settings import Settings
 
-    app = create_app(Settings(database_url=db_url))
+    app = create_app(Settings(database_url=app_db_url))
     app.state.hooks.__dict__.update(ServiceHooks().__dict__)
     with TestClient(app) as client:
         yield client

@@ -4,6 +4,7 @@ PostgreSQL databases, live servers (the fixtures in tests/conftest.py wrap these
 from __future__ import annotations
 
 import os
+import shutil
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -139,3 +140,11 @@ def run_live_server(
 
     with embedded_service(db_url, log_file=log, env=env) as url:
         yield LiveServer(url=url, db_url=db_url, log=log)
+
+
+def at_head(url: str, migrated: Path) -> str:
+    """`url`, its SQLite file (not there yet) made a copy of `migrated`, a database brought to
+    head (the `migrated_sqlite` fixture); any other URL as it is."""
+    if url.startswith("sqlite:///"):
+        shutil.copyfile(migrated, url.removeprefix("sqlite:///"))
+    return url

@@ -187,37 +187,37 @@ def tight_pack_files(ws: str, bodies: list[Body], redrawn: list[Body]) -> dict[s
             for name in chosen
         }
 
+    def pack(
+        name: str, role: str, description: str, drawn: list[Body], chosen: list[str], **extra: Any
+    ) -> dict[str, Any]:
+        return _task(
+            f"{ws}-{name}",
+            role,
+            description,
+            **extra,
+            obstacles=["tray"],
+            bodies=entries(drawn, chosen),
+            skeleton=pack_layers(chosen, "region_tray"),
+            goal=[f"On({b}, region_tray)" for b in chosen],
+        )
+
+    def predecessor(k: int, chosen: list[str]) -> dict[str, Any]:
+        description = f"Predecessor of tight_pack: {len(chosen)} other boxes into the tray."
+        return pack(f"tight_pack_pre{k}", "predecessor", description, redrawn, chosen)
+
     first, rest = names[:PRE_FIRST], names[PRE_FIRST:]
     return {
-        "tight_pack.yaml": _task(
-            f"{ws}-tight_pack",
+        "tight_pack.yaml": pack(
+            "tight_pack",
             "target",
             f"Pack the {len(names)} boxes (shortest first) into the tray with top grasps; they "
             "cover half its floor, so each must leave room for the ones still to come.",
+            bodies,
+            names,
             predecessors=["tight_pack_pre1.yaml", "tight_pack_pre2.yaml"],
-            obstacles=["tray"],
-            bodies=entries(bodies, names),
-            skeleton=pack_layers(names, "region_tray"),
-            goal=[f"On({b}, region_tray)" for b in names],
         ),
-        "tight_pack_pre1.yaml": _task(
-            f"{ws}-tight_pack_pre1",
-            "predecessor",
-            f"Predecessor of tight_pack: {len(first)} other boxes into the tray.",
-            obstacles=["tray"],
-            bodies=entries(redrawn, first),
-            skeleton=pack_layers(first, "region_tray"),
-            goal=[f"On({b}, region_tray)" for b in first],
-        ),
-        "tight_pack_pre2.yaml": _task(
-            f"{ws}-tight_pack_pre2",
-            "predecessor",
-            f"Predecessor of tight_pack: {len(rest)} other boxes into the tray.",
-            obstacles=["tray"],
-            bodies=entries(redrawn, rest),
-            skeleton=pack_layers(rest, "region_tray"),
-            goal=[f"On({b}, region_tray)" for b in rest],
-        ),
+        "tight_pack_pre1.yaml": predecessor(1, first),
+        "tight_pack_pre2.yaml": predecessor(2, rest),
     }
 
 

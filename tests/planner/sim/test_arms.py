@@ -47,7 +47,10 @@ def test_a_home_of_the_wrong_length_names_the_arm_joints(tmp_path: Path) -> None
     )
 
 
-@pytest.mark.parametrize(("task", "seed"), [("desk", 0), ("regrasp", 1), ("pack", 1)])
+@pytest.mark.parametrize(
+    ("task", "seed"),
+    [("desk", 0), ("regrasp", 1), pytest.param("pack", 1, marks=pytest.mark.slow)],
+)
 def test_the_xarm_solves_desk_regrasp_and_pack_like_tasks(task: str, seed: int) -> None:
     result = run_plan(str(XARM / f"{task}.yaml"), "quasi-random", seed, max_rollouts=400)
     assert result.solved, result.notes
