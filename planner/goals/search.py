@@ -217,7 +217,7 @@ def plan_goal(
                         Progress(
                             rollouts=base + p.rollouts,
                             max_rollouts=request.max_rollouts,
-                            best_depth=p.best_depth,  # in the running skeleton's layers
+                            best_depth=p.best_depth,  # a share of the running skeleton's layers
                             solved=p.solved,
                             types_active=0,
                             types_activated=0,
@@ -230,7 +230,7 @@ def plan_goal(
             )
             total += outcome.rollouts_spent - branch.spent
             branch.spent = outcome.rollouts_spent
-            branch.progress = outcome.best_depth / search.n_layers
+            branch.progress = outcome.best_depth  # already a share of the layers
             best = max(best, branch.progress)
             branch.exhausted = outcome.exhausted
             if outcome.solved:

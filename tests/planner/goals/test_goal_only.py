@@ -77,6 +77,8 @@ def test_a_skeleton_failing_early_yields_and_one_that_comes_close_is_revisited()
 def test_blocked_posed_by_its_goal_alone_is_solved_with_the_blocker_moved_first() -> None:
     result = run_plan(str(BLOCKED), "quasi-random", 0, max_rollouts=300)
     assert result.solved, result.notes
+    # Progress is the deepest rollout's share of its skeleton's layers: all of them, solved.
+    assert result.best_depth == 1.0
     solved_by = next(n for n in result.notes if n.startswith("solved by skeleton"))
     assert "(move blocker to " in solved_by and solved_by.endswith(", then block to goal)")
     task = load_task(str(BLOCKED))
