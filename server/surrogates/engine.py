@@ -592,6 +592,7 @@ class SurrogateEngine:
             max_inducing=config.max_inducing,
             max_points=config.max_fit_points,
             max_iters=config.instant_fit_iters,
+            warm_iters=config.instant_fit_iters // 3,
             groups=term_groups(entry.encoder, config.additive),
             balance=config.balance_classes,
         )
