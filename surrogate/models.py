@@ -23,6 +23,10 @@ import gpytorch
 import numpy as np
 import torch
 from imblearn.over_sampling import SMOTE
+from linear_operator.utils.errors import NotPSDError
+from scipy.linalg import cho_factor, cho_solve
+from scipy.spatial import cKDTree
+from scipy.special import ndtri
 from sklearn.cluster import KMeans
 from sklearn.neighbors import NearestNeighbors
 from threadpoolctl import OpenBLASController, threadpool_limits
@@ -41,6 +45,11 @@ MIN_POINTS = 4
 BOUNDARY_SHARE = 0.03  # of a subsampled fit's points, at most this many chosen as wrong ones
 WARM_LR = 0.03  # Adam's first steps are lr-sized whatever the gradient: small from a warm start
 NEIGHBOURS = 8  # without a last fit: whether most of these have the other label
+COLD_ITERS = 60  # a fit's steps from `_start_posterior`'s posterior
+WARM_ITERS = 33  # ... and from a warm start's
+START_SCALE = 1.5  # the start posterior's latent value per probit of a neighbourhood's rate
+TRAIN_DTYPE = torch.float32  # the same held-out AUC as float64 at two thirds of the cost
+# (a fit whose inducing points are too close for float32 is trained again in float64)
 
 
 @dataclass
@@ -193,6 +202,64 @@ def _kmeans_centres(z: np.ndarray, m: int, seed: int) -> np.ndarray:
     return km.cluster_centers_
 
 
+def _start_posterior(model: _SVGP, z: np.ndarray, y: np.ndarray) -> None:
+    """Start a fit's variational mean where its points say rather than at the prior's zero:
+    each inducing point's latent value is `START_SCALE` probits of the feasible rate of the
+    training points nearest to it (smoothed by half a point each way), smoothed and whitened
+    through the starting kernel. Adam then spends its steps on the boundary and the length
+    scales, not on climbing from zero everywhere. In float64 whatever the training precision."""
+    strategy = model.variational_strategy
+    inducing = strategy.inducing_points.detach().numpy().astype(float)
+    nearest = cKDTree(inducing).query(z)[1]
+    counts = np.bincount(nearest, minlength=len(inducing))
+    feasible = np.bincount(nearest, weights=y.astype(float), minlength=len(inducing))
+    latent = START_SCALE * ndtri((feasible + 0.5) / (counts + 1.0))
+    kzz = _kernel(model, inducing)
+    eye = np.eye(len(inducing))
+    constant = float(model.mean_module.constant.detach())
+    # The ridge fit of the latent values, u = K (K + s I)^-1 t with s the prior's variance (the
+    # rates are noisy), whitened: L^-1 u = L^T (K + s I)^-1 t, bounded however close the
+    # inducing points (L^-1 t alone grows without bound where K is nearly singular).
+    ridge = cho_solve(cho_factor(kzz + np.diag(kzz).max() * eye, lower=True), latent - constant)
+    whitened = np.linalg.cholesky(kzz + JITTER * eye).T @ ridge
+    with torch.no_grad():
+        strategy._variational_distribution.variational_mean.copy_(torch.as_tensor(whitened))
+        strategy.variational_params_initialized.fill_(1)
+
+
+def _trained(
+    inducing: torch.Tensor,
+    state: dict[str, Any] | None,
+    z: np.ndarray,
+    y: np.ndarray,
+    steps: int,
+    lr: float,
+    dtype: torch.dtype,
+) -> tuple[_SVGP, int]:
+    """A classifier trained on `z`, `y` in `dtype`, from the `state` of a last fit with as many
+    inducing points, else from its kernel (if any) and `_start_posterior`; and its steps."""
+    model = _SVGP(inducing.to(dtype)).to(dtype)
+    likelihood = gpytorch.likelihoods.BernoulliLikelihood().to(dtype)
+    if state is not None and state["m"] == len(inducing):
+        model.load_state_dict(state["model"])
+    else:
+        if state is not None:  # the last fit's kernel, a posterior anew
+            for name in ("mean_module", "covar_module"):
+                prefix = name + "."
+                part = {
+                    k[len(prefix) :]: v for k, v in state["model"].items() if k.startswith(prefix)
+                }
+                getattr(model, name).load_state_dict(part)
+        _start_posterior(model, z, y)
+    tx = torch.as_tensor(z, dtype=dtype)
+    ty = torch.as_tensor(y.astype(float), dtype=dtype)
+    model.train()
+    likelihood.train()
+    elbo = gpytorch.mlls.VariationalELBO(likelihood, model, num_data=len(ty))
+    params = [*model.parameters(), *likelihood.parameters()]
+    return model, _train(lambda: -elbo(model(tx), ty), params, steps, lr)
+
+
 def fit_classifier(
     z: np.ndarray,
     y: np.ndarray,
@@ -201,7 +268,8 @@ def fit_classifier(
     warm: Fit | None = None,
     max_inducing: int = SurrogateConfig().max_inducing,
     max_points: int = SurrogateConfig().max_fit_points,
-    max_iters: int = 100,
+    max_iters: int = COLD_ITERS,
+    warm_iters: int = WARM_ITERS,
     lr: float = 0.1,
     balance: bool = SurrogateConfig().balance_classes,
 ) -> Fit:
@@ -211,9 +279,10 @@ def fit_classifier(
     At most `max_points` of them are trained on (`_training_subset`; 0: all), so that a fit of
     a large type costs what one of `max_points` does.
 
-    The default steps and rate are the cheapest that reach the held-out accuracy of a longer,
-    slower fit (BENCHMARKS.md, "Measurements behind the defaults"): a transfer target waits for
-    its predecessors' fits.
+    Training runs in float32 from a posterior the points suggest (`_start_posterior`): the
+    default steps and rate are the cheapest that reach the held-out AUC of a longer, slower fit
+    (BENCHMARKS.md, "Hard problems"): a transfer target waits for its predecessors' fits, and a
+    new type of thousands of points for its first.
 
     A `warm` fit of the same kind starts the optimiser from its hyper-parameters, inducing
     locations and variational posterior (when the inducing count is unchanged), so a refit after
@@ -237,30 +306,15 @@ def fit_classifier(
         inducing = torch.as_tensor(state["model"]["variational_strategy.inducing_points"])
     else:
         inducing = torch.as_tensor(_kmeans_centres(zb, m, seed))
-    model = _SVGP(inducing.double()).double()
-    likelihood = gpytorch.likelihoods.BernoulliLikelihood().double()
     reused = state is not None and state["m"] == m
-    if state is not None:
-        if reused:
-            model.load_state_dict(state["model"])
-        else:
-            for name in ("mean_module", "covar_module"):
-                prefix = name + "."
-                part = {
-                    k[len(prefix) :]: v for k, v in state["model"].items() if k.startswith(prefix)
-                }
-                getattr(model, name).load_state_dict(part)
-    tx = torch.as_tensor(zb)
-    ty = torch.as_tensor(yb.astype(float))
-    model.train()
-    likelihood.train()
-    elbo = gpytorch.mlls.VariationalELBO(likelihood, model, num_data=len(ty))
-    iters = _train(
-        lambda: -elbo(model(tx), ty),
-        [*model.parameters(), *likelihood.parameters()],
-        max_iters // 3 if reused else max_iters,  # a new inducing set starts its posterior anew
-        min(lr, WARM_LR) if reused else lr,
-    )
+    steps = warm_iters if reused else max_iters  # a new inducing set starts its posterior anew
+    rate = min(lr, WARM_LR) if reused else lr
+    try:
+        model, iters = _trained(inducing, state, zb, yb, steps, rate, TRAIN_DTYPE)
+    except NotPSDError:  # points too close for float32's precision
+        torch.manual_seed(seed)
+        model, iters = _trained(inducing, state, zb, yb, steps, rate, torch.float64)
+    model = model.double()  # served, scored and stored in float64
     predictor = _vgp_predictor(model)
     accuracy = float(((predictor.proba(z[subset]) > 0.5) == y[subset]).mean())  # trained on
     weights = {k: v.detach().clone() for k, v in model.state_dict().items()}
@@ -279,16 +333,27 @@ def fit_classifier(
     )
 
 
+def _scaled(kernel: Any) -> tuple[np.ndarray, float]:
+    """A ScaleKernel(Matern)'s lengthscales `(d,)` and outputscale."""
+    lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).astype(float)
+    return lengthscale, float(kernel.outputscale)
+
+
+def _kernel(model: _SVGP, x: np.ndarray) -> np.ndarray:
+    """The model's prior covariance of `x` with itself, in float64."""
+    with torch.no_grad():
+        lengthscale, outputscale = _scaled(model.covar_module)
+    return matern52(x, x, lengthscale, outputscale)
+
+
 def _vgp_predictor(model: _SVGP) -> VGPPredictor:
     with torch.no_grad():
         strategy = model.variational_strategy
-        inducing = strategy.inducing_points.detach().numpy().copy()
-        kernel = model.covar_module
-        lengthscale = kernel.base_kernel.lengthscale.detach().numpy().reshape(-1).copy()
-        outputscale = float(kernel.outputscale)
+        inducing = strategy.inducing_points.detach().numpy().astype(float)
         dist = strategy._variational_distribution
-        m_v = dist.variational_mean.detach().numpy()
-        chol_s = dist.chol_variational_covar.detach().numpy()
+        m_v = dist.variational_mean.detach().numpy().astype(float)
+        chol_s = dist.chol_variational_covar.detach().numpy().astype(float)
+        lengthscale, outputscale = _scaled(model.covar_module)
     constant = float(model.mean_module.constant.detach())
     kzz = matern52(inducing, inducing, lengthscale, outputscale) + JITTER * np.eye(len(inducing))
     l_inv = np.linalg.inv(np.linalg.cholesky(kzz))

@@ -590,6 +590,7 @@ class SurrogateEngine:
             max_inducing=config.max_inducing,
             max_points=config.max_fit_points,
             max_iters=config.instant_fit_iters,
+            warm_iters=config.instant_fit_iters // 3,
             balance=config.balance_classes,
         )
         seen = seen_choices(entry.encoder, z[:n])

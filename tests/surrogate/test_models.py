@@ -250,3 +250,34 @@ def test_fit_cost_stops_growing_with_the_points() -> None:
     assert small.n_trained == large.n_trained == 600 and large.n_fitted == 6000
     assert small.n_inducing == large.n_inducing == 32
     assert large_cpu < 4 * small_cpu + 1.0
+
+
+def test_a_cold_fit_starts_from_the_feasible_rates_near_its_inducing_points() -> None:
+    z = np.random.default_rng(3).random((300, 2))
+    y = z[:, 0] > 0.5
+    start = fit_classifier(z, y, seed=0, max_iters=0)  # no training step: the start alone
+    p = start.predictor.proba(z)
+    assert start.iterations == 0 and start.kind == "vgp"
+    assert p[y].mean() > 0.7 and p[~y].mean() < 0.3
+    far = np.abs(z[:, 0] - 0.5) > 0.15
+    assert ((p > 0.5) == y)[far].mean() > 0.95
+
+
+def test_points_too_close_for_float32_are_fitted_in_float64(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import surrogate.models as models
+
+    dtypes: list[torch.dtype] = []
+    trained = models._trained
+
+    def recording(*args: object) -> object:
+        dtypes.append(args[-1])  # type: ignore[arg-type]
+        return trained(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(models, "_trained", recording)
+    v = np.random.default_rng(0).random(40)
+    z = np.column_stack([np.zeros(40), v])  # one input on a line: inducing points crowd it
+    fit = fit_classifier(z, v > 0.8, seed=0, max_iters=60)
+    assert dtypes == [torch.float32, torch.float64]
+    assert fit.kind == "vgp" and fit.predictor.proba(np.array([[0.0, 0.95]]))[0] > 0.5
