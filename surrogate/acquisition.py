@@ -116,8 +116,8 @@ class MPF:
     def per_term(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
         """`(k, n)` P(feasible) of each term. The terms of one type (one predictor, one encoder)
         are asked together, their inputs stacked: a request that looks ahead binds a few types
-        some thirty times, and a predictor call's cost is mostly its fixed part at a few hundred
-        candidates. Each row is computed as alone, so the values are the same."""
+        some thirty times, and each call has a fixed cost. A predictor answers each row on its
+        own, so the values are those of the terms asked one by one."""
         n = max((len(c) for c in cols.values()), default=1)
         groups: dict[tuple[int, int], list[int]] = {}
         for i, term in enumerate(self.terms):

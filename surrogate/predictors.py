@@ -27,7 +27,8 @@ class FeasibilityPredictor(Protocol):
     `uncertainty` is the posterior standard deviation of the latent function relative to its
     prior one, in [0, 1]: 1 where no data bears on the point (P(feasible) there is the model's
     extrapolation), near 0 where data pins it down. One scale for every kind, so that a picture
-    can mark the unsure regions of any model with one threshold.
+    can mark the unsure regions of any model with one threshold. Each row's answer depends on
+    that row alone (`surrogate.acquisition.MPF` stacks the rows of several terms in one call).
     """
 
     def proba(self, z: np.ndarray) -> np.ndarray: ...
