@@ -32,6 +32,8 @@ from multiprocessing.managers import SyncManager
 from pathlib import Path
 from typing import Any, Protocol
 
+from threadpoolctl import threadpool_limits
+
 from cpkb.bench.clocks import clock_fields
 from cpkb.bench.portfolio import Portfolio
 from cpkb.bench.records import RunResult, as_record
@@ -266,7 +268,8 @@ def _init_worker(bench_pid: int) -> None:
     also leaves when the bench process is gone (killed rather than interrupted, it cannot
     terminate its pool, and an orphaned worker would keep its run going for nothing)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ[var] = "1"
+        os.environ[var] = "1"  # for the libraries the run loads later
+    threadpool_limits(limits=1)  # for those already loaded (numpy is), which read no variable
     exit_with_parent(bench_pid)
 
 
