@@ -90,7 +90,16 @@ def test_store_gauges_follow_the_database(app_client: Any) -> None:
     assert types["default"] == 0
 
 
+ENGINE_THREADS = ("cpkb-surrogates", "cpkb-first-models")
+
+
 def test_fits_are_counted_with_their_duration() -> None:
+    # The counters are the process's: a fit an earlier test's stopped engine still had in flight
+    # (stop waits for it 30 s at most) would land between the reads below.
+    wait_until(
+        lambda: not any(t.name in ENGINE_THREADS for t in threading.enumerate()),
+        what="the fits of earlier tests' engines to end",
+    )
     before = _value("cpkb_surrogate_fits_total", outcome="ok")
     before_failed = _value("cpkb_surrogate_fits_total", outcome="error")
     before_sum = _value("cpkb_surrogate_fit_duration_seconds_sum")

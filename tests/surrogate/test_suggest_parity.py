@@ -11,19 +11,19 @@ from __future__ import annotations
 import json
 import time
 import uuid
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from recorded_support import recorded_models
 
 from client import CpkbClient
 from client.errors import BadRequest
 from contract.models import PointIn, SuggestIn, SuggestOut
 from planner.knowledge.local import LocalSurrogates, fetch_from
 from surrogate.config import OptimizerConfig
-from surrogate.domains import space_from_json
 from surrogate.pending import PendingBook
 from surrogate.sources import InMemoryModels
 from surrogate.suggest import InvalidRequest, SuggestAnswer, SuggestRequest, suggest
@@ -33,16 +33,8 @@ REQUESTS: list[dict[str, Any]] = RECORDED["requests"]
 SERVICE_OPTIMIZER = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)  # the service's defaults
 
 
-def _decision_space(graph: Mapping[str, Any]) -> dict[str, Any]:
-    return {n["label"]: n["domain"] for n in graph["nodes"] if n["role"] == "decision"}
-
-
 def _memory() -> InMemoryModels:
-    memory = InMemoryModels()
-    for recorded in RECORDED["types"]:
-        points = [(p["x"], p["feasible"]) for p in recorded["points"]]
-        memory.add(recorded["type_id"], space_from_json(_decision_space(recorded["graph"])), points)
-    return memory
+    return recorded_models()
 
 
 def _points(answer: SuggestOut | SuggestAnswer) -> list[Any]:

@@ -4,8 +4,6 @@ against a real service where HTTP matters."""
 
 from __future__ import annotations
 
-import copy
-import functools
 import json
 import subprocess
 import sys
@@ -15,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from recorded_support import recorded_models
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from client import CpkbClient
@@ -36,22 +35,8 @@ RECORDED = json.loads(FIXTURE.read_text())
 OPTIMIZER = OptimizerConfig(mpf_margin=0.1, mpf_margin_abs=0.025)  # the service's defaults
 
 
-@functools.cache
-def _fitted() -> InMemoryModels:
-    memory = InMemoryModels()
-    for recorded in RECORDED["types"]:
-        nodes = recorded["graph"]["nodes"]
-        space = {n["label"]: n["domain"] for n in nodes if n["role"] == "decision"}
-        points = [(p["x"], p["feasible"]) for p in recorded["points"]]
-        memory.add(recorded["type_id"], space_from_json(space), points)
-        memory.model(recorded["type_id"])
-    return memory
-
-
 def _memory() -> InMemoryModels:
-    """The recorded desk types, with their points, fitted once for the module: each test gets a
-    copy, which it may add to."""
-    return copy.deepcopy(_fitted())
+    return recorded_models()
 
 
 def _grasp_request() -> SuggestIn:
