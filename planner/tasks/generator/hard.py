@@ -67,12 +67,12 @@ def is_kept(rollouts: list[int | None], settings: HardProbe) -> bool:
 
 def _decided(rollouts: list[int | None], settings: HardProbe) -> bool:
     """Whether the seeds left can no longer change the verdict: an answer counts only as
-    unsolved, solved below `hard_median` or solved at it or above, so the three stand for all."""
+    unsolved, solved below `hard_median` or solved at it or above, so the three stand for all
+    (and, the verdict blind to the order, their multisets for every way the rest may answer)."""
     classes = (None, 0, settings.hard_median)
     left = settings.seeds - len(rollouts)
-    verdicts = {
-        is_kept([*rollouts, *rest], settings) for rest in itertools.product(classes, repeat=left)
-    }
+    rests = itertools.combinations_with_replacement(classes, left)
+    verdicts = {is_kept([*rollouts, *rest], settings) for rest in rests}
     return len(verdicts) == 1
 
 
