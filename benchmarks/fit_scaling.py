@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 from sklearn.metrics import roc_auc_score
 
+from server.surrogates.engine import FIT_THREADS
 from surrogate.config import SurrogateConfig
-from surrogate.models import Fit, fit_classifier, fit_label_regression, warm_up
+from surrogate.models import Fit, fit_classifier, fit_label_regression, use_threads, warm_up
 
 RESULTS = Path(__file__).resolve().parent / "results"
 DIM = 5
@@ -44,7 +45,8 @@ def constraint(z: np.ndarray) -> np.ndarray:
 
 def _timed(fit_fn: Callable[[], Fit], zt: np.ndarray, yt: np.ndarray) -> dict[str, Any]:
     """One fit: wall seconds, CPU seconds of this process (what the fit costs, whatever else
-    the machine runs: fits use one thread), held-out AUC and what it trained on."""
+    the machine runs: fits use one thread, as in the fit worker), held-out AUC and what it
+    trained on."""
     cpu = time.process_time()
     fit = fit_fn()
     cpu = time.process_time() - cpu
@@ -85,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=RESULTS / "fit_scaling.json")
     args = parser.parse_args(argv)
     sizes = [int(s) for s in args.sizes.split(",")]
+    use_threads(FIT_THREADS)  # as the service's fit worker runs
     warm_up()
     rows = []
     for n in sizes:
